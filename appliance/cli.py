@@ -1,0 +1,109 @@
+"""Command line: ``collision-warning run | replay | simulate | demo | evaluate | ptu-sim``.
+
+Exit status 0 on success, 2 on bad arguments, configuration or input (one line
+naming the file, key or line), 1 on a runtime failure. No traceback unless
+``--debug`` is given.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+from typing import NoReturn
+
+from appliance import __version__
+from appliance.errors import ApplianceError
+
+PROG = "collision-warning"
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with a one-line error message and exit status 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
+
+
+# subcommand -> module whose ``main(args) -> int`` runs it
+COMMANDS = {
+    "run": "appliance.live",
+    "replay": "appliance.replay",
+    "simulate": "appliance.sim.cli",
+    "demo": "appliance.demo",
+    "evaluate": "appliance.evaluate",
+    "ptu-sim": "drivers.ptu_sim",
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog=PROG, description="Monocular collision warning appliance.")
+    p.add_argument("--version", action="version", version=f"{PROG} {__version__}")
+    p.add_argument("--debug", action="store_true", help="print tracebacks of internal errors")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    run = sub.add_parser("run", help="live: V4L2 camera, serial PTU, SocketCAN (the systemd service)")
+    run.add_argument("--config", required=True, help="TOML file overriding config/default.toml")
+    run.add_argument("--record", metavar="DIR", help="also write every input as drive recordings under DIR")
+    run.add_argument("--out", metavar="DIR", help="output directory (default: runtime.out_dir)")
+
+    rp = sub.add_parser("replay", help="run the pipeline on a drive recording")
+    rp.add_argument("recording", help="drive recording directory")
+    rp.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    rp.add_argument("--config", help="TOML file overriding config/default.toml")
+    rp.add_argument("--realtime", action="store_true",
+                    help="feed the drivers' recording sources at the recorded pace, as live")
+    rp.add_argument("--video", metavar="FILE", help="also write an annotated video")
+    rp.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+
+    sim = sub.add_parser("simulate", help="write a synthetic drive recording with truth.json")
+    sim.add_argument("scenario", nargs="?", help="scenario name (see --list)")
+    sim.add_argument("--out", metavar="RECORDING", help="recording directory to create")
+    sim.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    sim.add_argument("--duration", type=float, metavar="S", help="override the scenario duration, s")
+    sim.add_argument("--video", choices=("mkv", "avi", "png"), default="mkv",
+                     help="frame storage (default mkv, FFV1 lossless)")
+    sim.add_argument("--list", action="store_true", help="list the scenarios and exit")
+
+    demo = sub.add_parser("demo", help="simulated drives through the real drivers, live (the main job)")
+    demo.add_argument("--out", metavar="DIR", default="out/demo", help="output directory (default out/demo)")
+    demo.add_argument("--config", help="TOML file overriding config/default.toml")
+
+    ev = sub.add_parser("evaluate", help="score a run against the recording's truth.json")
+    ev.add_argument("recording", help="simulated drive recording (with truth.json)")
+    ev.add_argument("run_dir", help="output directory of a replay or run")
+
+    ptu = sub.add_parser("ptu-sim", help="simulated pan-tilt unit on a pseudo-terminal")
+    ptu.add_argument("--latency", type=float, default=0.0, metavar="S", help="reply latency, s")
+    ptu.add_argument("--garbage", type=float, default=0.0, metavar="P",
+                     help="probability of garbage bytes before a reply")
+    ptu.add_argument("--link", metavar="PATH", help="also create a symlink to the pty at PATH")
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        if hasattr(args, "config"):
+            from appliance.config import load_config
+
+            args.cfg = load_config(args.config)
+        module = importlib.import_module(COMMANDS[args.command])
+        return int(module.main(args))
+    except ApplianceError as exc:
+        print(f"{PROG} {args.command}: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        return 130
+    except Exception as exc:  # the last line of defence: one line, not a traceback
+        if args.debug:
+            raise
+        print(f"{PROG} {args.command}: internal error: {type(exc).__name__}: {exc} "
+              "(rerun with --debug for details)", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

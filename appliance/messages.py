@@ -83,6 +83,31 @@ class ParticleSet:
 
 
 @dataclass(frozen=True)
+class ProbabilityMap:
+    """Spatio-temporally filtered probability of independent motion, p(x) (section 4).
+
+    ``p`` has shape (ceil(H / scale), ceil(W / scale)), values in [0, 1]; pixel
+    (u, v) of the image maps to ``p[int(v) // scale, int(u) // scale]``. The
+    vision core samples its static-scene correspondences with probability
+    1 - p(x) (fig. 6, step 1).
+    """
+
+    p: NDArray[np.float32]
+    scale: int
+
+    def at(self, uv: NDArray[np.floating]) -> NDArray[np.float32]:
+        """p(x) at image pixels ``uv`` (N, 2); pixels outside the image get 0."""
+        uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
+        h, w = self.p.shape
+        col = np.floor(uv[:, 0] / self.scale).astype(np.int64)
+        row = np.floor(uv[:, 1] / self.scale).astype(np.int64)
+        inside = (col >= 0) & (col < w) & (row >= 0) & (row < h)
+        out = np.zeros(len(uv), dtype=np.float32)
+        out[inside] = self.p[row[inside], col[inside]]
+        return out
+
+
+@dataclass(frozen=True)
 class TrackReport:
     """One confirmed track as written to ``tracks.jsonl`` (spec)."""
 

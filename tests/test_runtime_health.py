@@ -1,0 +1,74 @@
+"""Health state machine and the systemd notification protocol over a real unix socket."""
+
+from __future__ import annotations
+
+import socket
+from pathlib import Path
+
+import pytest
+
+from appliance.runtime.health import DEGRADED, FAULT, OK, STARTING, Faults, Health
+from appliance.runtime.sd_notify import SdNotifier, watchdog_interval_s
+
+
+def test_states_and_single_report_per_change() -> None:
+    h = Health()
+    assert h.status.state == STARTING
+    assert h.update(True, Faults(), 30.0, 5.0) is not None
+    assert h.status.state == OK
+    assert h.update(True, Faults(), 30.0, 5.0) is None  # no change, no report
+    msg = h.update(True, Faults(vehicle_can_stale=True), 30.0, 5.0)
+    assert msg is not None and "degraded" in msg and "vehicle_can_stale" in msg
+    assert h.update(True, Faults(vehicle_can_stale=True), 29.0, 6.0) is None
+    assert h.update(True, Faults(camera=True, ptu=True), 0.0, 0.0) is not None
+    assert h.status.state == FAULT
+    assert h.update(True, Faults(overrun=True), 30.0, 5.0) is not None
+    assert h.status.state == DEGRADED
+    assert h.changes == 4
+
+
+def test_sd_notify_sends_datagrams(tmp_path: Path) -> None:
+    path = str(tmp_path / "notify")
+    srv = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    srv.bind(path)
+    srv.settimeout(5.0)
+    try:
+        n = SdNotifier(path)
+        assert n.enabled
+        assert n.ready("first frame processed")
+        assert srv.recv(4096) == b"READY=1\nSTATUS=first frame processed"
+        assert n.watchdog()
+        assert srv.recv(4096) == b"WATCHDOG=1"
+        n.close()
+    finally:
+        srv.close()
+
+
+def test_sd_notify_abstract_namespace() -> None:
+    srv = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    srv.bind("\0cw-test-notify")
+    srv.settimeout(5.0)
+    try:
+        assert SdNotifier("@cw-test-notify").status("ok")
+        assert srv.recv(100) == b"STATUS=ok"
+    finally:
+        srv.close()
+
+
+def test_without_notify_socket_it_is_a_no_op(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("NOTIFY_SOCKET", raising=False)
+    n = SdNotifier()
+    assert not n.enabled and not n.ready()
+
+
+def test_gone_socket_is_counted_not_raised(tmp_path: Path) -> None:
+    n = SdNotifier(str(tmp_path / "absent"))
+    assert not n.watchdog() and n.failures == 1
+
+
+def test_watchdog_interval(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("WATCHDOG_USEC", "5000000")
+    monkeypatch.delenv("WATCHDOG_PID", raising=False)
+    assert watchdog_interval_s() == 2.5
+    monkeypatch.setenv("WATCHDOG_PID", "1")
+    assert watchdog_interval_s() is None

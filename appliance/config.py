@@ -147,6 +147,8 @@ class ProbabilityMapConfig:
     gauss_window_px: int = _p(1, 255)
     temporal_alpha: float = _p(0.0, 1.0, lo_open=True)
     scale: int = _p(1, 16)
+    evidence_particles: float = _p(0.0, 1000.0)
+    rotation_compensation: bool = _p()
 
 
 @dataclass(frozen=True)
@@ -154,6 +156,7 @@ class ClusteringConfig:
     threshold: float = _p(0.0, 1.0, lo_open=True)
     dilation_px: int = _p(0, 255)
     min_correspondences: int = _p(1, 100000)
+    member_weight: float = _p(0.0, 1.0)
 
 
 @dataclass(frozen=True)
@@ -168,14 +171,21 @@ class TrackingConfig:
     confirm_frames: int = _p(1, 1000)
     max_missed: int = _p(1, 1000)
     merge_px: float = _p(0.0)
+    box_size_alpha: float = _p(0.0, 1.0, lo_open=True)
 
 
 @dataclass(frozen=True)
 class GroundConfig:
-    position_std_m: float = _p(0.0, lo_open=True)
+    contact_std_px: float = _p(0.0, 100.0, lo_open=True)
+    pitch_std_rad: float = _p(0.0, 0.5)
+    pitch_decay_s: float = _p(0.0, 100.0, lo_open=True)
     process_accel_m_s2: float = _p(0.0, lo_open=True)
+    initial_velocity_std_m_s: float = _p(0.0, 100.0, lo_open=True)
+    max_range_m: float = _p(1.0, 1000.0)
+    coast_s: float = _p(0.0, 10.0)
     border_margin_px: int = _p(0, 1000)
     scale_ttc_min_frames: int = _p(2, 1000)
+    scale_process_std: float = _p(0.0, 100.0)
 
 
 @dataclass(frozen=True)
@@ -186,6 +196,9 @@ class WarningConfig:
     hysteresis_s: float = _p(0.0, 10.0)
     min_persistence_frames: int = _p(1, 1000)
     hold_s: float = _p(0.0, 60.0)
+    corridor_hysteresis_m: float = _p(0.0, 10.0)
+    horizon_s: float = _p(0.0, 60.0, lo_open=True)
+    bearing_tolerance_rad: float = _p(0.0, 1.0)
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""``python -m tools.vcan_vm [options] [-- COMMAND ...]``: run COMMAND in the vcan guest.
+"""``python -m tests.vcan_vm [options] [-- COMMAND ...]``: run COMMAND in the vcan guest.
 
 Without a command it runs the in-guest test suite: ``<this python> -m pytest -v
 -m vcan tests`` in the current directory. Prints the command's output, then one
@@ -14,8 +14,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from tools.vcan_vm.guest import VmFailure, VmUnavailable
-from tools.vcan_vm.runner import run_in_vm
+from .guest import VmFailure, VmUnavailable
+from .runner import run_in_vm
 
 EXIT_SKIP = 77
 
@@ -26,7 +26,7 @@ def default_command(tests: str = "tests") -> list[str]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m tools.vcan_vm", description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(prog="python -m tests.vcan_vm", description=__doc__.split("\n")[0])
     p.add_argument("--timeout", type=float, default=600.0, metavar="S",
                    help="kill the guest after S seconds from start (default 600)")
     p.add_argument("--boot-timeout", type=float, default=120.0, metavar="S",

@@ -1,5 +1,5 @@
 #!/bin/busybox sh
-# init of the vcan test guest (tools/vcan_vm): load the modules listed in
+# init of the vcan test guest (tests/vcan_vm): load the modules listed in
 # /modules.order, mount the host root over 9p, create vcan0 and vcan1, run the
 # job script named on the kernel command line (vcanvm.job=DIR) chrooted into
 # the host root, power off. Lines starting "vcan-vm:" on the console are the

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
 
-from tools.vcan_vm.guest import Kernel, VmFailure, VmUnavailable, build_initramfs, find_kernel
+from .guest import Kernel, VmFailure, VmUnavailable, build_initramfs, find_kernel
 
 QEMU = "qemu-system-x86_64"
 MARKER = re.compile(r"vcan-vm: (stage|error:) ?(.*)")
@@ -83,7 +83,7 @@ def job_script(command: Sequence[str], cwd: Path, job: Path, env: Mapping[str, s
     q = shlex.quote
     return "\n".join([
         "#!/bin/sh",
-        "# written by tools.vcan_vm for one guest run",
+        "# written by tests.vcan_vm for one guest run",
         f"cd {q(str(cwd))} || {{ echo 'vcan-vm: error: working directory {cwd} not found'; exit 1; }}",
         "echo 'vcan-vm: stage job-start'",
         f"{{ env -i {exports} {shlex.join(command)} < /dev/null; "

@@ -1,0 +1,230 @@
+"""The decision stage (section 4 + the 3-D state): particles in, tracks and warnings out.
+
+``decide(state, frame_index, t, particles, ego, sensors, cfg, camera)`` is a pure
+function of frozen state: time is an argument, nothing is read from a clock and
+there is no randomness, so a replay is deterministic. Per frame:
+
+1. spatio-temporal filter of the particle weights -> p(x) (probability_map.py);
+2. threshold, dilation, labelling -> clusters with eqs. 19-20 (clustering.py);
+3. the paper's five Kalman tracking rules (tracking.py);
+4. per track: the ground contact back-projected with the refined pitch and the
+   PTU into a 3-D filter with the ego motion removed (ground_state.py), and the
+   scale-change cue (scale_ttc.py);
+5. path vs ego corridor and TTC per confirmed track (threat.py);
+6. warning levels with persistence, hysteresis and hold (warnings.py).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from appliance.config import Config
+from appliance.decision.clustering import Cluster, find_clusters
+from appliance.decision.ground_state import (
+    CameraPose, GroundTrack, bearing, camera_pose, ground_contact, ground_init, ground_predict,
+    ground_update, update_body_pitch,
+)
+from appliance.decision.probability_map import empty_map, spatio_temporal_filter
+from appliance.decision.scale_ttc import ScaleState, measure_expansion, scale_predict, scale_ttc, scale_update
+from appliance.decision.threat import (
+    bumper_ttc, constant_bearing_course, fuse, ground_ttc_std, object_radius, outline_gap,
+    predict_path,
+)
+from appliance.decision.tracking import ImageModel, ImageTrack, TrackerState, track_step
+from appliance.decision.warnings import TrackThreat, WarningState, warning_step
+from appliance.messages import EgoMotion, ParticleSet, ProbabilityMap, SensorSample, TrackReport, WarningEvent
+from appliance.vision.geometry import PinholeCamera
+
+BEARING_HISTORY = 10  # frames of bearing kept per track for its rate
+
+
+@dataclass(frozen=True)
+class TrackCues:
+    """Per-track state beyond the image filters: 3-D state, scale cue, bearing history."""
+
+    ground: GroundTrack | None = None
+    ground_fresh: bool = False
+    scale: ScaleState | None = None
+    bearings: tuple[tuple[float, float], ...] = ()
+
+
+@dataclass(frozen=True)
+class DecisionState:
+    """Everything the decision stage carries from one frame to the next (frozen)."""
+
+    model: ImageModel = field(repr=False)
+    prob: NDArray[np.float32]
+    tracker: TrackerState
+    cues: dict[int, TrackCues]
+    warning: WarningState
+    body_pitch: float
+    pose: CameraPose | None
+    t: float | None
+
+
+@dataclass(frozen=True)
+class DecisionOutput:
+    """What one frame of the decision stage produced (see the task brief for the fields)."""
+
+    prob_map: ProbabilityMap
+    clusters: tuple[Cluster, ...]
+    tracks: tuple[TrackReport, ...]
+    warnings: tuple[WarningEvent, ...]
+    warning_level: int
+    warning_track: TrackReport | None
+
+
+def init_decision_state(cfg: Config, camera: PinholeCamera) -> DecisionState:
+    return DecisionState(
+        prob=empty_map(camera, cfg.probability_map.scale),
+        tracker=TrackerState(),
+        cues={},
+        warning=WarningState(),
+        body_pitch=0.0,
+        pose=None,
+        t=None,
+        model=ImageModel.from_config(cfg.tracking),
+    )
+
+
+def _touches_border(box: tuple[float, float, float, float], camera: PinholeCamera,
+                    margin: int) -> bool:
+    """Left, right or bottom edge within ``margin`` px of the image border (the top does not
+    hide the ground contact)."""
+    u0, _, u1, v1 = box
+    return u0 <= margin or u1 >= camera.width - margin or v1 >= camera.height - margin
+
+
+def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
+                 ego: EgoMotion, sensors: SensorSample, pose: CameraPose, cfg: Config,
+                 camera: PinholeCamera) -> TrackCues:
+    g = cues.ground if cues else None
+    s = cues.scale if cues else None
+    if g is not None:
+        g = ground_predict(g, dt, sensors, cfg.ground)
+    if s is not None:
+        s = scale_predict(s, dt, cfg.ground.scale_process_std)
+    fresh = False
+    c = track.cluster
+    if c is not None:
+        if not _touches_border(c.bbox, camera, cfg.ground.border_margin_px):
+            u0, _, u1, v1 = c.bbox
+            contact = ground_contact(camera, (0.5 * (u0 + u1), v1 - 0.5), pose, cfg.ground)
+            if contact is not None:
+                g = ground_init(contact, t, cfg.ground) if g is None else ground_update(g, contact, t)
+                fresh = True
+        moving = c.weights >= cfg.clustering.member_weight
+        m = measure_expansion(c.positions[moving], c.flows[moving], c.weights[moving],
+                              ego.rotation, camera)
+        if m is not None:
+            s = scale_update(s, m, dt)
+    if g is not None and t - g.t_update > cfg.ground.coast_s:
+        g = None
+    hist = (cues.bearings if cues else ()) + ((t, bearing(camera, track.position, pose)),)
+    return TrackCues(ground=g, ground_fresh=fresh, scale=s, bearings=hist[-BEARING_HISTORY:])
+
+
+def _bearing_rate(hist: tuple[tuple[float, float], ...]) -> float | None:
+    if len(hist) < 3:
+        return None
+    ts = np.array([h[0] for h in hist])
+    bs = np.unwrap(np.array([h[1] for h in hist]))
+    if ts[-1] - ts[0] <= 0.0:
+        return None
+    return float(np.polyfit(ts - ts[-1], bs, 1)[0])
+
+
+def assess(track: ImageTrack, cues: TrackCues, sensors: SensorSample, cfg: Config,
+           camera: PinholeCamera) -> TrackThreat:
+    """TTC, distance, bearing and the corridor test for one confirmed track (threat.py)."""
+    mount, w = cfg.mount, cfg.warning
+    speed = sensors.speed_m_s if math.isfinite(sensors.speed_m_s) else 0.0
+    yaw = sensors.yaw_rate_rad_s if math.isfinite(sensors.yaw_rate_rad_s) else 0.0
+    brg = cues.bearings[-1][1] if cues.bearings else None
+    distance: float | None = None
+    ground_est: tuple[float, float] | None = None
+    on_course = on_wide = False
+    depth: float | None = None
+    g = cues.ground
+    if g is not None:
+        pos, vel = g.position, g.velocity
+        distance = float(outline_gap(pos, mount, 0.0))
+        depth = float(pos[0] - mount.x_m)
+        radius = object_radius(track.size[0], float(np.hypot(pos[0] - mount.x_m, pos[1] - mount.y_m)),
+                               camera.fx)
+        base = predict_path(pos, vel, speed, yaw, mount, w.corridor_margin_m, radius, w.horizon_s)
+        wide = predict_path(pos, vel, speed, yaw, mount, w.corridor_margin_m + w.corridor_hysteresis_m,
+                            radius, w.horizon_s)
+        on_course, on_wide = base.ttc is not None, wide.ttc is not None
+        ttc_g = base.ttc if base.ttc is not None else wide.ttc
+        if ttc_g is not None:
+            ground_est = (ttc_g, ground_ttc_std(pos, g.P, ttc_g, speed, vel))
+    scale = scale_ttc(cues.scale, cfg.ground.scale_ttc_min_frames)
+    scale_est = bumper_ttc(scale, depth, mount) if scale is not None else None
+    ttc: float | None = None
+    if g is not None:
+        if ground_est is not None:
+            fused = fuse(ground_est, scale_est)
+            ttc = fused[0] if fused is not None else None
+    elif scale_est is not None and brg is not None:
+        rate = _bearing_rate(cues.bearings)
+        if rate is not None:
+            on_course = constant_bearing_course(brg, rate, scale_est[0], mount, w.corridor_margin_m,
+                                                w.bearing_tolerance_rad)
+            on_wide = on_course or constant_bearing_course(
+                brg, rate, scale_est[0], mount, w.corridor_margin_m + w.corridor_hysteresis_m,
+                w.bearing_tolerance_rad)
+            ttc = scale_est[0] if on_wide else None
+    report = TrackReport(
+        id=int(track.id) if track.id is not None else -1,
+        bbox=tuple(round(v, 1) for v in track.bbox),  # type: ignore[arg-type]
+        probability=round(float(track.probability), 4),
+        flow=(round(track.velocity[0], 3), round(track.velocity[1], 3)),
+        ttc_s=None if ttc is None else round(max(ttc, 0.0), 3),
+        distance_m=None if distance is None else round(distance, 2),
+        bearing_rad=None if brg is None else round(brg, 4),
+    )
+    return TrackThreat(report=report, on_course=on_course, on_course_wide=on_wide)
+
+
+def decide(state: DecisionState, frame_index: int, t: float, particles: ParticleSet,
+           ego: EgoMotion, sensors: SensorSample, cfg: Config, camera: PinholeCamera
+           ) -> tuple[DecisionState, DecisionOutput]:
+    """One frame of the decision stage; see the module docstring."""
+    fps = cfg.camera.fps
+    dt = (t - state.t) if state.t is not None and t > state.t else 1.0 / fps
+    model = state.model
+    body_pitch = state.body_pitch
+    if state.pose is not None:
+        body_pitch = update_body_pitch(body_pitch, ego, state.pose, dt, cfg.ground)
+    pose = camera_pose(cfg.mount, body_pitch, sensors)
+
+    prob = spatio_temporal_filter(state.prob, particles, ego.rotation, camera, cfg.probability_map)
+    clusters = find_clusters(prob, cfg.probability_map.scale, particles, cfg.clustering,
+                             (camera.width, camera.height))
+    tracker = track_step(state.tracker, clusters, cfg.tracking, model)
+
+    cues: dict[int, TrackCues] = {}
+    threats: list[TrackThreat] = []
+    for tr in tracker.tracks:
+        cues[tr.uid] = _update_cues(state.cues.get(tr.uid), tr, t, dt, ego, sensors, pose, cfg,
+                                    camera)
+        if tr.confirmed:
+            threats.append(assess(tr, cues[tr.uid], sensors, cfg, camera))
+    threats.sort(key=lambda th: th.report.id)
+    warning, events, warned = warning_step(state.warning, tuple(threats), t, frame_index, cfg.warning)
+    new_state = DecisionState(prob=prob, tracker=tracker, cues=cues, warning=warning,
+                              body_pitch=body_pitch, pose=pose, t=t, model=model)
+    out = DecisionOutput(
+        prob_map=ProbabilityMap(p=prob, scale=cfg.probability_map.scale),
+        clusters=clusters,
+        tracks=tuple(th.report for th in threats),
+        warnings=events,
+        warning_level=warning.level,
+        warning_track=warned,
+    )
+    return new_state, out

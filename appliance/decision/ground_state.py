@@ -1,0 +1,208 @@
+"""3-D state of a track on the road plane, in the vehicle frame (ISO 8855: x fwd, y left).
+
+What the paper lacks and the model-based tracking fragment motivates: a track's
+ground contact point (bottom centre of its box) is back-projected onto the road
+plane with the camera height, the refined pitch and the PTU angles; a Kalman
+filter estimates the object's position and its velocity *over ground* in the
+current vehicle frame, with the ego motion from CAN (speed, yaw rate) removed in
+the prediction step.
+
+Refined pitch: the body pitch b (rad, nose down positive) that CAN cannot see
+(road bumps) is the accumulated difference between the refined and the prior
+inter-frame rotations, mapped from camera axes to the vehicle's y axis; it decays
+towards zero with ``pitch_decay_s`` so that it cannot drift. The camera's pitch
+for back-projection is then ``mount.pitch_rad + b`` with pan and tilt from the PTU.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from filterpy.common import Q_discrete_white_noise
+from filterpy.kalman import predict, update
+from numpy.typing import NDArray
+
+from appliance.config import GroundConfig, MountConfig
+from appliance.messages import EgoMotion, SensorSample
+from appliance.vision.geometry import PinholeCamera, vehicle_from_camera_rotation
+
+FloatArray = NDArray[np.float64]
+
+# a ray must point at least this far below the horizon (dz per unit length) to hit the road
+MIN_DOWN = 1e-4
+
+
+@dataclass(frozen=True)
+class CameraPose:
+    """Where the camera is and how it looks, for back-projection.
+
+    position: camera centre in the vehicle frame (m); pitch: mount pitch plus the
+    refined body pitch (rad, positive looks down); pan/tilt: PTU (rad).
+    """
+
+    position: tuple[float, float, float]
+    pitch: float
+    pan: float
+    tilt: float
+
+    def rotation(self) -> FloatArray:
+        """Vehicle-from-camera rotation (3, 3)."""
+        return vehicle_from_camera_rotation(self.pitch, self.pan, self.tilt)
+
+
+def camera_pose(mount: MountConfig, body_pitch: float, sensors: SensorSample) -> CameraPose:
+    return CameraPose((mount.x_m, mount.y_m, mount.z_m), mount.pitch_rad + body_pitch,
+                      sensors.pan_rad, sensors.tilt_rad)
+
+
+def update_body_pitch(b: float, ego: EgoMotion, pose_prev: CameraPose, dt: float,
+                      cfg: GroundConfig) -> float:
+    """Body pitch (rad, nose down +) after this frame's refined rotation.
+
+    The refined minus the prior rotation (camera axes, point rotation) is the
+    part CAN and the PTU did not predict; rotated into the vehicle frame, its y
+    component (with a minus: a nose-down body rotation shows up as +r_x for a
+    level camera) is the body pitch increment. Not integrated when the
+    refinement kept its prior (``confident`` False). Decays with
+    ``pitch_decay_s``.
+    """
+    decay = math.exp(-max(dt, 0.0) / cfg.pitch_decay_s)
+    if not ego.confident:
+        return b * decay
+    d = np.asarray(ego.rotation, dtype=np.float64) - np.asarray(ego.prior_rotation, dtype=np.float64)
+    if not np.all(np.isfinite(d)):
+        return b * decay
+    inc = -float((pose_prev.rotation() @ d)[1])
+    return (b + inc) * decay
+
+
+def back_project(camera: PinholeCamera, uv: NDArray[np.floating], pose: CameraPose) -> FloatArray:
+    """Image pixels (N, 2) -> points (N, 2) (x, y) on the road plane z = 0, vehicle frame, m.
+
+    Rows whose ray does not point below the horizon are NaN.
+    """
+    rays = camera.rays(np.asarray(uv, dtype=np.float64).reshape(-1, 2))
+    d = rays @ pose.rotation().T
+    out = np.full((len(d), 2), np.nan)
+    down = d[:, 2] < -MIN_DOWN
+    lam = -pose.position[2] / d[down, 2]
+    out[down, 0] = pose.position[0] + lam * d[down, 0]
+    out[down, 1] = pose.position[1] + lam * d[down, 1]
+    return out
+
+
+def bearing(camera: PinholeCamera, uv: tuple[float, float], pose: CameraPose) -> float:
+    """Azimuth (rad, CCW/left positive) of pixel ``uv`` seen from the camera, vehicle frame."""
+    d = pose.rotation() @ camera.rays(np.array([uv]))[0]
+    return float(math.atan2(d[1], d[0]))
+
+
+@dataclass(frozen=True)
+class GroundContact:
+    """A back-projected ground contact: position (2,) m and its covariance (2, 2) m^2."""
+
+    z: FloatArray
+    R: FloatArray
+
+    @property
+    def range_m(self) -> float:
+        return float(np.hypot(self.z[0], self.z[1]))
+
+
+def ground_contact(camera: PinholeCamera, uv: tuple[float, float], pose: CameraPose,
+                   cfg: GroundConfig) -> GroundContact | None:
+    """The road point under pixel ``uv`` with its covariance, or None when it is unusable.
+
+    The covariance propagates ``contact_std_px`` in u and v and ``pitch_std_rad``
+    through the back-projection (numerical Jacobian). None when the pixel is at or
+    above the horizon, or the point is further than ``max_range_m`` from the camera.
+    """
+    du, dp = 0.5, 1e-4
+    pts = np.array([uv, (uv[0] + du, uv[1]), (uv[0], uv[1] + du)])
+    xy = back_project(camera, pts, pose)
+    pose_p = CameraPose(pose.position, pose.pitch + dp, pose.pan, pose.tilt)
+    xy_p = back_project(camera, pts[:1], pose_p)
+    if not (np.all(np.isfinite(xy)) and np.all(np.isfinite(xy_p))):
+        return None
+    z = xy[0]
+    if math.hypot(z[0] - pose.position[0], z[1] - pose.position[1]) > cfg.max_range_m:
+        return None
+    J = np.column_stack([(xy[1] - z) / du, (xy[2] - z) / du, (xy_p[0] - z) / dp])
+    S = np.diag([cfg.contact_std_px ** 2, cfg.contact_std_px ** 2, cfg.pitch_std_rad ** 2])
+    R = J @ S @ J.T + np.eye(2) * 1e-4
+    return GroundContact(z=z, R=R)
+
+
+# ----------------------------------------------------------------- 3-D filter
+
+
+@dataclass(frozen=True)
+class GroundTrack:
+    """State ``[x, y, vx, vy]`` (m, m/s): position in the current vehicle frame and the
+    object's velocity over ground expressed in it; P (4, 4). t_update: time of the last
+    ground contact (s); updates: how many contacts it has taken."""
+
+    x: FloatArray
+    P: FloatArray
+    t_update: float
+    updates: int
+
+    @property
+    def position(self) -> FloatArray:
+        return self.x[:2]
+
+    @property
+    def velocity(self) -> FloatArray:
+        return self.x[2:]
+
+
+H_POSITION: FloatArray = np.hstack([np.eye(2), np.zeros((2, 2))])
+
+
+def ground_init(contact: GroundContact, t: float, cfg: GroundConfig) -> GroundTrack:
+    P = np.zeros((4, 4))
+    P[:2, :2] = contact.R
+    P[2:, 2:] = np.eye(2) * cfg.initial_velocity_std_m_s ** 2
+    return GroundTrack(x=np.concatenate([contact.z, [0.0, 0.0]]), P=P, t_update=t, updates=1)
+
+
+def ego_step(speed: float, yaw_rate: float, dt: float) -> tuple[FloatArray, FloatArray]:
+    """(Rt, d): the old-to-new frame rotation Rz(-dpsi) (2, 2) and the ego displacement d
+    (2,) m in the old frame, for a circular arc at ``speed`` m/s and ``yaw_rate`` rad/s."""
+    dpsi = yaw_rate * dt
+    c, s = math.cos(dpsi), math.sin(dpsi)
+    Rt = np.array([[c, s], [-s, c]])
+    d = speed * dt * np.array([math.cos(0.5 * dpsi), math.sin(0.5 * dpsi)])
+    return Rt, d
+
+
+def ground_predict(g: GroundTrack, dt: float, sensors: SensorSample, cfg: GroundConfig
+                   ) -> GroundTrack:
+    """Move the state by ``dt`` s: the object at constant velocity over ground, the frame with
+    the ego vehicle (CAN speed and yaw rate): p' = Rt (p + v dt - d), v' = Rt v."""
+    if dt <= 0.0:
+        return g
+    speed = sensors.speed_m_s if math.isfinite(sensors.speed_m_s) else 0.0
+    yaw = sensors.yaw_rate_rad_s if math.isfinite(sensors.yaw_rate_rad_s) else 0.0
+    Rt, d = ego_step(speed, yaw, dt)
+    F = np.zeros((4, 4))
+    F[:2, :2] = Rt
+    F[:2, 2:] = Rt * dt
+    F[2:, 2:] = Rt
+    B = np.vstack([-Rt, np.zeros((2, 2))])
+    q = Q_discrete_white_noise(dim=2, dt=dt, var=cfg.process_accel_m_s2 ** 2)
+    Q = np.zeros((4, 4))
+    for i in range(2):
+        Q[np.ix_([i, i + 2], [i, i + 2])] = q
+    if not sensors.can_valid:
+        # ego motion unknown: the displacement may be wrong by several m/s
+        Q[:2, :2] += np.eye(2) * (3.0 * dt) ** 2
+    x, P = predict(g.x, g.P, F, Q, u=d, B=B)
+    return GroundTrack(x=x, P=P, t_update=g.t_update, updates=g.updates)
+
+
+def ground_update(g: GroundTrack, contact: GroundContact, t: float) -> GroundTrack:
+    x, P = update(g.x, g.P, contact.z, contact.R, H_POSITION)
+    return GroundTrack(x=x, P=P, t_update=t, updates=g.updates + 1)

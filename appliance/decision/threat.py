@@ -1,0 +1,130 @@
+"""Does a track's predicted path meet the ego vehicle, and when? (time to collision)
+
+Two cues, combined per track and frame:
+
+* **Ground cue** (primary): the 3-D state (ground_state.py) predicts the object
+  at constant velocity over ground and the ego vehicle along the arc of its CAN
+  speed and yaw rate, over ``horizon_s``. The TTC is the first time the object
+  (a disc of the radius its box width implies at its range) touches the ego
+  outline widened by ``corridor_margin_m`` on each side; the closest approach
+  is the smallest gap over the horizon. No contact within the horizon: TTC null.
+* **Scale cue** (scale_ttc.py): time until the object reaches the camera's image
+  plane, corrected to the front bumper with the 3-D depth where one exists
+  (``TTC_bumper = TTC_cam (1 - d / Z)``, d the camera-to-bumper distance).
+
+How they combine (where the ground contact is unreliable: the box touches the
+image border, the contact point is beyond ``max_range_m`` or above the horizon):
+
+1. ground contact reliable this frame and a scale TTC exists -> the
+   corridor test is the ground path's; the TTC is the inverse-variance weighted
+   mean of the ground and the bumper-corrected scale TTC;
+2. no ground contact this frame but a 3-D state updated within ``coast_s``
+   -> the coasted state decides the corridor, and the fusion of 1 applies with
+   the coasted state's grown variance, so the scale cue takes over smoothly;
+3. no usable 3-D state -> scale cue alone, with the classic monocular test for
+   the corridor: constant bearing (predicted bearing change until contact below
+   ``bearing_tolerance_rad``) and a bearing inside the corridor as seen at the
+   bumper;
+4. neither -> TTC and distance null (honestly unknown), no warning from this track.
+
+At standstill nothing changes: back-projection needs no ego motion and the
+ego path is a point.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from appliance.config import MountConfig
+
+FloatArray = NDArray[np.float64]
+
+STEP_S = 0.05  # s, time resolution of the path prediction
+
+
+@dataclass(frozen=True)
+class PathPrediction:
+    """ttc: first contact with the widened outline (s) or None; closest: smallest gap (m, >= 0)."""
+
+    ttc: float | None
+    closest: float
+
+
+def outline_gap(q: FloatArray, mount: MountConfig, margin: float) -> FloatArray:
+    """Distance (m) from points q (..., 2) in a vehicle frame to the ego outline widened
+    laterally by ``margin``; 0 inside."""
+    dx = np.maximum(np.maximum(-mount.vehicle_rear_m - q[..., 0], q[..., 0] - mount.vehicle_front_m),
+                    0.0)
+    dy = np.maximum(np.abs(q[..., 1]) - (0.5 * mount.vehicle_width_m + margin), 0.0)
+    return np.hypot(dx, dy)
+
+
+def predict_path(position: NDArray[np.floating], velocity: NDArray[np.floating], speed: float,
+                 yaw_rate: float, mount: MountConfig, margin: float, radius: float,
+                 horizon_s: float) -> PathPrediction:
+    """Object at ``position`` (m) moving at ``velocity`` (m/s over ground), both in the current
+    vehicle frame; ego along an arc (speed m/s, yaw rate rad/s); vectorised over time."""
+    tau = np.arange(0.0, horizon_s + 1e-9, STEP_S)
+    psi = yaw_rate * tau
+    if abs(yaw_rate) > 1e-4:
+        ex = speed * np.sin(psi) / yaw_rate
+        ey = speed * (1.0 - np.cos(psi)) / yaw_rate
+    else:
+        ex, ey = speed * tau, np.zeros_like(tau)
+    px = position[0] + velocity[0] * tau - ex
+    py = position[1] + velocity[1] * tau - ey
+    c, s = np.cos(psi), np.sin(psi)
+    q = np.stack([c * px + s * py, -s * px + c * py], axis=-1)
+    gap = outline_gap(q, mount, margin) - radius
+    hit = np.flatnonzero(gap <= 0.0)
+    ttc = float(tau[hit[0]]) if len(hit) else None
+    return PathPrediction(ttc=ttc, closest=float(max(np.min(gap), 0.0)))
+
+
+def ground_ttc_std(position: NDArray[np.floating], P: NDArray[np.floating], ttc: float,
+                   speed: float, velocity: NDArray[np.floating]) -> float:
+    """Approximate std (s) of a ground-path TTC: the longitudinal position and velocity
+    uncertainty divided by the closing speed."""
+    closing = max(speed - float(velocity[0]), 0.5)
+    var = P[0, 0] + ttc * ttc * P[2, 2] + 2.0 * ttc * P[0, 2]
+    return math.sqrt(max(var, 1e-6)) / closing
+
+
+def fuse(a: tuple[float, float] | None, b: tuple[float, float] | None
+         ) -> tuple[float, float] | None:
+    """Inverse-variance weighted mean of two (value, std) estimates; either may be None."""
+    if a is None:
+        return b
+    if b is None:
+        return a
+    wa, wb = 1.0 / (a[1] ** 2), 1.0 / (b[1] ** 2)
+    return ((wa * a[0] + wb * b[0]) / (wa + wb), math.sqrt(1.0 / (wa + wb)))
+
+
+def bumper_ttc(ttc_cam: tuple[float, float], depth_m: float | None, mount: MountConfig
+               ) -> tuple[float, float]:
+    """Scale TTC to the camera plane -> to the front bumper, when the depth Z (m, along the
+    vehicle x axis from the camera) is known; unchanged otherwise."""
+    d = mount.vehicle_front_m - mount.x_m
+    if depth_m is None or depth_m <= d + 0.1:
+        return ttc_cam
+    f = 1.0 - d / depth_m
+    return (ttc_cam[0] * f, ttc_cam[1] * f)
+
+
+def constant_bearing_course(bearing: float, bearing_rate: float, ttc: float,
+                            mount: MountConfig, margin: float, tolerance: float) -> bool:
+    """Monocular collision-course test without a range: the bearing hardly changes until
+    contact and lies inside the corridor seen from the camera at the bumper."""
+    d = max(mount.vehicle_front_m - mount.x_m, 0.5)
+    half = math.atan2(0.5 * mount.vehicle_width_m + margin, d)
+    return abs(bearing_rate * ttc) <= tolerance and abs(bearing) <= half
+
+
+def object_radius(box_width_px: float, range_m: float, fx: float) -> float:
+    """Half the object's lateral extent (m) from its box width at its range, in [0.2, 2.5] m."""
+    return float(min(max(0.5 * box_width_px * range_m / fx, 0.2), 2.5))

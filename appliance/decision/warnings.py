@@ -1,0 +1,152 @@
+"""Warning levels a driver can trust: thresholds, persistence, hysteresis, hold.
+
+Per confirmed track and frame the threat assessment (threat.py) says whether its
+predicted path meets the ego corridor and with what TTC. From that:
+
+* **Indication.** Level 2 is indicated while the path meets the corridor
+  (``corridor_margin_m``) and TTC <= ``ttc_warning_s``; level 1 with
+  ``ttc_caution_s``.
+* **Minimum persistence.** A track raises a level only after indicating it in
+  ``min_persistence_frames`` consecutive frames: no single-frame warnings.
+* **Hysteresis.** Once a track holds a level it keeps it while TTC <= threshold +
+  ``hysteresis_s`` and the path meets the corridor widened by
+  ``corridor_hysteresis_m``: a TTC oscillating around a threshold does not flicker.
+* **Hold.** An issued level is not lowered within ``hold_s`` of being issued. If
+  the warned track is lost (it left the image or went under the bonnet just
+  before contact), the level is held until its last predicted contact time has
+  passed (at least ``hold_s``): a warning is never cleared because the object
+  came too close to see.
+
+The issued level is the highest over all tracks (ties: the track already
+warned about, then the smallest TTC). A state change -- level or warned track --
+produces one :class:`WarningEvent`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+from appliance.config import WarningConfig
+from appliance.messages import TrackReport, WarningEvent
+
+
+@dataclass(frozen=True)
+class TrackThreat:
+    """What the threat assessment says of one confirmed track this frame.
+
+    on_course: path meets the corridor (base margin); on_course_wide: with the
+    corridor hysteresis added. ttc_s None = no contact predicted / unknown.
+    """
+
+    report: TrackReport
+    on_course: bool
+    on_course_wide: bool
+
+    @property
+    def ttc(self) -> float | None:
+        return self.report.ttc_s
+
+
+@dataclass(frozen=True)
+class WarningState:
+    """level: issued level 0/1/2; track: id behind it; since: time it was issued (s);
+    streaks: per track id, consecutive frames indicating (level 1, level 2);
+    last: the last report of the warned track and the time it was seen."""
+
+    level: int = 0
+    track: int | None = None
+    since: float = float("-inf")
+    streaks: dict[int, tuple[int, int]] = field(default_factory=dict)
+    last: TrackReport | None = None
+    last_seen: float = float("-inf")
+
+
+def _indicated(th: TrackThreat, threshold: float, wide: bool, hysteresis: float) -> bool:
+    ttc = th.ttc
+    if ttc is None:
+        return False
+    if wide:
+        return th.on_course_wide and ttc <= threshold + hysteresis
+    return th.on_course and ttc <= threshold
+
+
+def warning_step(state: WarningState, threats: tuple[TrackThreat, ...], t: float, frame: int,
+                 cfg: WarningConfig) -> tuple[WarningState, tuple[WarningEvent, ...], TrackReport | None]:
+    """One frame: (new state, events of this frame, the report behind the issued level)."""
+    thresholds = {1: cfg.ttc_caution_s, 2: cfg.ttc_warning_s}
+    streaks: dict[int, tuple[int, int]] = {}
+    candidates: list[tuple[int, float, int, TrackThreat]] = []
+    for th in threats:
+        tid = th.report.id
+        old = state.streaks.get(tid, (0, 0))
+        s1 = old[0] + 1 if _indicated(th, thresholds[1], False, 0.0) else 0
+        s2 = old[1] + 1 if _indicated(th, thresholds[2], False, 0.0) else 0
+        streaks[tid] = (s1, s2)
+        level = 0
+        for k, streak in ((2, s2), (1, s1)):
+            holding = (state.track == tid and state.level >= k
+                       and _indicated(th, thresholds[k], True, cfg.hysteresis_s))
+            if streak >= cfg.min_persistence_frames or holding:
+                level = k
+                break
+        if level > 0:
+            ttc = th.ttc if th.ttc is not None else float("inf")
+            candidates.append((level, ttc, tid, th))
+    # highest level; then the track already warned about; then the smallest TTC
+    candidates.sort(key=lambda c: (-c[0], c[2] != state.track, c[1], c[2]))
+    present = {th.report.id: th for th in threats}
+    if candidates:
+        level, _, tid, best = candidates[0]
+        new_track: int | None = tid
+        report: TrackReport | None = best.report
+    else:
+        level, new_track, report = 0, None, None
+
+    # hold: never lower an issued level within hold_s, nor while a lost track's contact is due
+    if level < state.level:
+        held = t < state.since + cfg.hold_s
+        if state.track is not None and state.track not in present and state.last is not None:
+            due = state.last_seen + max(cfg.hold_s, state.last.ttc_s or 0.0)
+            held = held or t < due
+        if held:
+            level, new_track = state.level, state.track
+            if new_track in present:
+                report = present[new_track].report
+            else:
+                report = _extrapolated(state.last, t - state.last_seen)
+    seen = new_track is not None and new_track in present
+    events: tuple[WarningEvent, ...] = ()
+    if level != state.level or (level > 0 and new_track != state.track):
+        since = t
+        if level == 0:
+            cleared = state.track
+            rep = present[cleared].report if cleared is not None and cleared in present else None
+            events = (WarningEvent(t=t, frame=frame, level=0, track=cleared,
+                                   bbox=rep.bbox if rep else None, ttc_s=rep.ttc_s if rep else None,
+                                   distance_m=rep.distance_m if rep else None,
+                                   bearing_rad=rep.bearing_rad if rep else None),)
+        else:
+            assert report is not None
+            events = (WarningEvent(t=t, frame=frame, level=level, track=new_track, bbox=report.bbox,
+                                   ttc_s=report.ttc_s, distance_m=report.distance_m,
+                                   bearing_rad=report.bearing_rad),)
+    else:
+        since = state.since
+    new_state = WarningState(
+        level=level,
+        track=new_track if level > 0 else None,
+        since=since,
+        streaks=streaks,
+        last=(present[new_track].report if seen and new_track is not None else state.last)
+        if level > 0 else None,
+        last_seen=t if seen else state.last_seen,
+    )
+    return new_state, events, report if level > 0 else None
+
+
+def _extrapolated(last: TrackReport | None, elapsed: float) -> TrackReport | None:
+    """The lost warned track as last seen, its TTC counted down; its distance is unknown."""
+    if last is None:
+        return None
+    ttc = None if last.ttc_s is None else max(last.ttc_s - elapsed, 0.0)
+    return replace(last, ttc_s=ttc, distance_m=None)

@@ -107,8 +107,9 @@ def find_clusters(prob: NDArray[np.float32], scale: int, particles: ParticleSet,
     ok = ok & np.all(np.isfinite(pos), axis=1) & np.all(np.isfinite(flow), axis=1)
     ok &= np.isfinite(weight)
     rows, cols = prob.shape
-    col = np.floor(pos[:, 0] / scale).astype(np.int64)
-    row = np.floor(pos[:, 1] / scale).astype(np.int64)
+    safe = np.where(np.isfinite(pos), pos, -1.0)
+    col = np.floor(safe[:, 0] / scale).astype(np.int64)
+    row = np.floor(safe[:, 1] / scale).astype(np.int64)
     ok &= (col >= 0) & (col < cols) & (row >= 0) & (row < rows)
     label_of = np.zeros(len(pos), dtype=np.int64)
     label_of[ok] = labels[row[ok], col[ok]]

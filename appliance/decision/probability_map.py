@@ -82,8 +82,9 @@ def insert_particles(particles: ParticleSet, shape: tuple[int, int], scale: int
     w = np.asarray(particles.weights, dtype=np.float64).reshape(-1)
     ok = np.asarray(particles.valid, dtype=bool).reshape(-1) & np.all(np.isfinite(pos), axis=1)
     ok &= np.isfinite(w)
-    col = np.floor(pos[:, 0] / scale).astype(np.int64)
-    row = np.floor(pos[:, 1] / scale).astype(np.int64)
+    safe = np.where(np.isfinite(pos), pos, -1.0)
+    col = np.floor(safe[:, 0] / scale).astype(np.int64)
+    row = np.floor(safe[:, 1] / scale).astype(np.int64)
     ok &= (col >= 0) & (col < cols) & (row >= 0) & (row < rows)
     flat = row[ok] * cols + col[ok]
     n = rows * cols

@@ -165,15 +165,14 @@ def track_step(state: TrackerState, clusters: tuple[Cluster, ...], cfg: Tracking
     assigned = np.zeros(len(clusters), dtype=bool)
     # rule 2: closest region within the gate updates the filter
     for i, t in enumerate(tracks):
-        if len(clusters) == 0:
-            break
-        d = np.hypot(centers[:, 0] - t.x[0, 0], centers[:, 1] - t.x[1, 0])
-        j = int(np.argmin(d))
-        if d[j] < cfg.gate_px or d[j] < cfg.gate_sigmas * t.position_std:
-            tracks[i] = _update(t, clusters[j], model, cfg.box_size_alpha)
-            assigned[j] = True
-        else:
-            tracks[i] = replace(t, misses=t.misses + 1)
+        if len(clusters):
+            d = np.hypot(centers[:, 0] - t.x[0, 0], centers[:, 1] - t.x[1, 0])
+            j = int(np.argmin(d))
+            if d[j] < cfg.gate_px or d[j] < cfg.gate_sigmas * t.position_std:
+                tracks[i] = _update(t, clusters[j], model, cfg.box_size_alpha)
+                assigned[j] = True
+                continue
+        tracks[i] = replace(t, misses=t.misses + 1)
     # rule 3: tentative filters must be updated in each of their first steps;
     # every filter dies after max_missed steps without an update
     kept = [t for t in tracks

@@ -6,6 +6,6 @@ unchanged. ``python -m tests.vcan_vm`` runs the ``vcan``-marked tests in it.
 """
 
 from .guest import VmFailure, VmUnavailable
-from .runner import VmResult, run_in_vm
+from .runner import VmResult, run_in_vm, suite_command
 
-__all__ = ["VmFailure", "VmResult", "VmUnavailable", "run_in_vm"]
+__all__ = ["VmFailure", "VmResult", "VmUnavailable", "run_in_vm", "suite_command"]

@@ -1,7 +1,7 @@
 """``python -m tests.vcan_vm [options] [-- COMMAND ...]``: run COMMAND in the vcan guest.
 
 Without a command it runs the in-guest test suite: ``<this python> -m pytest -v
--m vcan tests`` in the current directory. Prints the command's output, then one
+-m vcan tests/test_vcan_*.py`` in the working directory. Prints the command's output, then one
 summary line on stderr, and exits with the command's exit status; 77 (the
 automake convention for "skipped") with one line when this machine cannot run
 the guest; 1 with one line when the guest failed (missing module, boot
@@ -15,14 +15,9 @@ import sys
 from pathlib import Path
 
 from .guest import VmFailure, VmUnavailable
-from .runner import run_in_vm
+from .runner import run_in_vm, suite_command
 
 EXIT_SKIP = 77
-
-
-def default_command(tests: str = "tests") -> list[str]:
-    """The in-guest suite: every ``vcan``-marked test, verbose so a hang names its test."""
-    return [sys.executable, "-m", "pytest", "-v", "-m", "vcan", "-p", "no:cacheprovider", tests]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -51,9 +46,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    command = [a for a in args.command if a != "--"] if args.command else default_command()
-    if not command:
-        command = default_command()
+    command = args.command[1:] if args.command[:1] == ["--"] else args.command
+    command = command or suite_command(args.cwd.resolve())
     try:
         result = run_in_vm(command, args.cwd.resolve(), timeout_s=args.timeout,
                            boot_timeout_s=args.boot_timeout, kernel_image=args.kernel,

@@ -18,6 +18,7 @@ import re
 import shlex
 import shutil
 import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -77,6 +78,16 @@ def check_host(kernel_image: Path | None = None) -> Kernel:
     return find_kernel(kernel_image)
 
 
+def suite_command(repo: Path) -> list[str]:
+    """The in-guest suite: the ``vcan``-marked tests of ``repo/tests/test_vcan_*.py``.
+
+    Only those files are collected, so an unrelated test module cannot break the
+    VM run; ``-v`` prints each test's name as it starts, so a hang names its test.
+    """
+    files = sorted(str(p.relative_to(repo)) for p in (repo / "tests").glob("test_vcan_*.py"))
+    return [sys.executable, "-m", "pytest", "-v", "-m", "vcan", "-p", "no:cacheprovider", *files]
+
+
 def job_script(command: Sequence[str], cwd: Path, job: Path, env: Mapping[str, str]) -> str:
     """The shell script the guest runs chrooted into the host root (``/bin/sh``)."""
     exports = " ".join(shlex.quote(f"{k}={v}") for k, v in sorted(env.items()))
@@ -115,8 +126,26 @@ def qemu_command(kernel: Kernel, initrd: Path, job: Path, memory_mb: int, accel:
             "-append", f"console=ttyS0 quiet panic=-1 vcanvm.job={job}"]
 
 
+class _Console:
+    """What the console watcher saw: the last lines and the kernel's panic line, if any."""
+
+    def __init__(self) -> None:
+        self.tail: deque[str] = deque(maxlen=20)
+        self.panic: str | None = None
+
+    def add(self, line: str) -> None:
+        line = line.strip()
+        if line:
+            self.tail.append(line)
+        if self.panic is None and "Kernel panic" in line:
+            self.panic = line[line.index("Kernel panic"):]
+
+    def last(self) -> str:
+        return self.panic or (self.tail[-1] if self.tail else "(none)")
+
+
 def _watch_console(stream: IO[bytes], log: IO[bytes], events: queue.Queue[_Event],
-                   tail: deque[str], echo: IO[str] | None) -> None:
+                   seen: _Console, echo: IO[str] | None) -> None:
     """Copy the serial console to ``log`` (and ``echo``), reporting markers and the end."""
     for raw in iter(stream.readline, b""):
         log.write(raw)
@@ -125,8 +154,7 @@ def _watch_console(stream: IO[bytes], log: IO[bytes], events: queue.Queue[_Event
         if echo is not None:
             echo.write(line + "\n")
             echo.flush()
-        if line.strip():
-            tail.append(line.strip())
+        seen.add(line)
         m = MARKER.search(line)
         if m:
             kind = "stage" if m.group(1) == "stage" else "error"
@@ -185,7 +213,7 @@ def boot(kernel: Kernel, job: Path, memory_mb: int = 1024, accel: str = "tcg", c
     :raises VmFailure: see :func:`run_in_vm`.
     """
     events: queue.Queue[_Event] = queue.Queue()
-    tail: deque[str] = deque(maxlen=20)
+    seen = _Console()
     argv = qemu_command(kernel, job / "initrd.cpio", job, memory_mb, accel, cpus)
     t0 = time.monotonic()
     with (job / "console.log").open("wb") as log, (job / "qemu.err").open("wb") as err:
@@ -193,7 +221,7 @@ def boot(kernel: Kernel, job: Path, memory_mb: int = 1024, accel: str = "tcg", c
                                 stderr=err)
         assert proc.stdout is not None
         watcher = threading.Thread(target=_watch_console, name="vcan-vm-console", daemon=True,
-                                   args=(proc.stdout, log, events, tail, console))
+                                   args=(proc.stdout, log, events, seen, console))
         watcher.start()
         started: float | None = None
         try:
@@ -204,8 +232,8 @@ def boot(kernel: Kernel, job: Path, memory_mb: int = 1024, accel: str = "tcg", c
                 except queue.Empty:
                     if started is None:
                         raise VmFailure(f"guest hung during boot: no job start after "
-                                        f"{boot_timeout_s:.0f} s, QEMU killed; last console "
-                                        f"line: {tail[-1] if tail else '(none)'}") from None
+                                        f"{boot_timeout_s:.0f} s, QEMU killed; console: "
+                                        f"{seen.last()}") from None
                     raise VmFailure(f"guest hung: job still running after {timeout_s:.0f} s, "
                                     f"QEMU killed; last output: {_last_line(job / 'output')}"
                                     ) from None
@@ -225,8 +253,8 @@ def boot(kernel: Kernel, job: Path, memory_mb: int = 1024, accel: str = "tcg", c
     status_file = job / "status"
     if started is None:
         qemu_err = _last_line(job / "qemu.err") if proc.returncode != 0 else ""
-        why = f"QEMU exited with status {proc.returncode}: {qemu_err}" if qemu_err else (
-            f"last console line: {tail[-1] if tail else '(none)'}")
+        why = (f"QEMU exited with status {proc.returncode}: {qemu_err}" if qemu_err
+               else f"console: {seen.last()}")
         raise VmFailure(f"guest stopped before the job started (boot failure); {why}")
     if not status_file.is_file():
         raise VmFailure("guest stopped without the job's exit status (guest crashed?); "

@@ -48,7 +48,7 @@ def measure_expansion(positions: NDArray[np.floating], flows: NDArray[np.floatin
 
     positions (N, 2): x_t px (distorted image pixels); flows (N, 2): x_t - x_{t-1};
     weights (N,) >= 0; rotation: refined inter-frame Euler angles (rad) whose flow
-    is removed, or None. One pass of 3-sigma outlier rejection. None when fewer
+    is removed, or None. Up to two refits without outliers (3.5 robust sigma). None when fewer
     than 4 points or a spread below 2 px.
     """
     cur = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
@@ -65,8 +65,9 @@ def measure_expansion(positions: NDArray[np.floating], flows: NDArray[np.floatin
         trans = trans - rotational_flow(camera, prev_i, euler_to_matrix(np.asarray(rotation)))
     keep = np.ones(len(cur), dtype=bool)
     result: Expansion | None = None
-    for _ in range(2):
-        if np.count_nonzero(keep) < MIN_POINTS:
+    for _ in range(3):
+        n = int(np.count_nonzero(keep))
+        if n < MIN_POINTS:
             return result
         ww = w[keep] / np.sum(w[keep])
         dx = prev_i[keep] - ww @ prev_i[keep]
@@ -75,20 +76,17 @@ def measure_expansion(positions: NDArray[np.floating], flows: NDArray[np.floatin
         if sxx < MIN_SPREAD_PX ** 2:
             return result
         kappa = float(np.sum(ww * np.sum(dx * df, axis=1)) / sxx)
-        res = df - kappa * dx
-        r2 = np.sum(res * res, axis=1)
-        n = int(np.count_nonzero(keep))
-        # residual variance per component, with 3 fitted parameters (shift u, v and kappa)
-        sigma2 = float(np.sum(ww * r2)) * 2 * n / max(2 * n - 3, 1) / 2.0
-        sigma2 = max(sigma2, 0.05 ** 2)
+        r2 = np.sum((df - kappa * dx) ** 2, axis=1)
+        # residual variance per component, 3 fitted parameters (shift u, v and kappa)
+        sigma2 = max(float(np.sum(ww * r2)) / 2.0 * 2 * n / max(2 * n - 3, 1), 0.05 ** 2)
         n_eff = 1.0 / float(np.sum(ww * ww))
-        var = sigma2 / (sxx * n_eff)
-        result = Expansion(kappa=kappa, var=var, n=n)
-        idx = np.flatnonzero(keep)
-        bad = r2 > 9.0 * 2.0 * sigma2
+        result = Expansion(kappa=kappa, var=sigma2 / (sxx * n_eff), n=n)
+        # robust scale of the residuals (median norm of a 2-D Gaussian is 1.177 sigma)
+        robust = max(float(np.median(np.sqrt(r2))) / 1.177, 0.05)
+        bad = np.sqrt(r2) > 3.5 * robust
         if not np.any(bad):
             break
-        keep[idx[bad]] = False
+        keep[np.flatnonzero(keep)[bad]] = False
     return result
 
 

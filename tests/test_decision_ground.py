@@ -1,0 +1,208 @@
+"""3-D state per track: back-projection, refined pitch, ego-motion removal, path and scale TTC."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from appliance.config import Config
+from appliance.decision.ground_state import (
+    CameraPose, back_project, ground_contact, ground_init, ground_predict, ground_update,
+    update_body_pitch, GroundContact,
+)
+from appliance.decision.scale_ttc import (
+    measure_expansion, scale_predict, scale_ttc, scale_update,
+)
+from appliance.decision.threat import bumper_ttc, fuse, predict_path
+from appliance.messages import EgoMotion, SensorSample
+from appliance.vision.geometry import (
+    PinholeCamera, euler_to_matrix, matrix_to_euler, relative_motion, rotational_flow,
+    vehicle_from_camera, vehicle_from_camera_rotation,
+)
+
+CAM = PinholeCamera(640, 480, 700.0, 700.0, 319.5, 239.5)
+CAM_DIST = PinholeCamera(640, 480, 700.0, 700.0, 319.5, 239.5, (-0.12, 0.03, 0.001, -0.001, 0.0))
+
+
+def project(camera: PinholeCamera, pose: CameraPose, P: np.ndarray) -> np.ndarray:
+    Rvc = vehicle_from_camera_rotation(pose.pitch, pose.pan, pose.tilt)
+    return camera.project((np.atleast_2d(P) - np.asarray(pose.position)) @ Rvc)
+
+
+@pytest.mark.parametrize("camera", [CAM, CAM_DIST])
+def test_back_projection_recovers_a_known_road_point(camera: PinholeCamera) -> None:
+    pose = CameraPose((1.9, 0.1, 1.3), pitch=0.05, pan=0.2, tilt=-0.03)
+    P = np.array([[15.0, 4.0, 0.0], [6.0, 1.0, 0.0], [30.0, 6.5, 0.0]])
+    uv = project(camera, pose, P)
+    assert np.all(np.isfinite(uv))
+    xy = back_project(camera, uv, pose)
+    np.testing.assert_allclose(xy, P[:, :2], atol=1e-4 if camera is CAM else 2e-2)
+
+
+def test_back_projection_above_the_horizon_is_nan() -> None:
+    pose = CameraPose((1.9, 0.0, 1.3), pitch=0.0, pan=0.0, tilt=0.0)
+    xy = back_project(CAM, np.array([[320.0, 100.0], [320.0, 239.5], [320.0, 400.0]]), pose)
+    assert np.all(np.isnan(xy[:2])) and np.all(np.isfinite(xy[2]))
+
+
+def test_ground_contact_covariance_grows_with_range(default_config: Config) -> None:
+    pose = CameraPose((1.9, 0.0, 1.3), 0.0, 0.0, 0.0)
+    near = ground_contact(CAM, tuple(project(CAM, pose, np.array([8.0, 0.0, 0.0]))[0]), pose,
+                          default_config.ground)
+    far = ground_contact(CAM, tuple(project(CAM, pose, np.array([40.0, 0.0, 0.0]))[0]), pose,
+                         default_config.ground)
+    assert near is not None and far is not None
+    assert near.z == pytest.approx([8.0, 0.0], abs=1e-6)
+    assert math.sqrt(far.R[0, 0]) > 10 * math.sqrt(near.R[0, 0])
+    # beyond max_range_m: unusable (scale cue only)
+    cfg = default_config.with_overrides({"ground": {"max_range_m": 30.0}})
+    assert ground_contact(CAM, tuple(project(CAM, pose, np.array([40.0, 0.0, 0.0]))[0]), pose,
+                          cfg.ground) is None
+
+
+@pytest.mark.parametrize("pan", [0.0, 0.4])
+def test_body_pitch_from_refined_minus_prior_rotation(default_config: Config, pan: float) -> None:
+    """A nose-down body pitch of 0.01 rad that CAN cannot see is recovered from the rotation."""
+    pos = (1.9, 0.0, 1.3)
+    before = vehicle_from_camera(pos, 0.02, pan, 0.0)
+    after = vehicle_from_camera(pos, 0.03, pan, 0.0)
+    R, _ = relative_motion(before, after)
+    r = matrix_to_euler(R)
+    ego = EgoMotion(r, np.zeros(3), None, np.zeros(3), np.zeros(3), None, 50, True)
+    pose = CameraPose(pos, 0.02, pan, 0.0)
+    b = update_body_pitch(0.0, ego, pose, 0.0, default_config.ground)
+    assert b == pytest.approx(0.01, rel=0.02)
+    # the prior (CAN + PTU) explains it all: no body pitch
+    explained = EgoMotion(r, np.zeros(3), None, r, np.zeros(3), None, 50, True)
+    assert update_body_pitch(0.0, explained, pose, 0.0, default_config.ground) == pytest.approx(0.0)
+    # not confident: only decays
+    lost = EgoMotion(r, np.zeros(3), None, np.zeros(3), np.zeros(3), None, 3, False)
+    decayed = update_body_pitch(0.01, lost, pose, 1.0, default_config.ground)
+    assert decayed == pytest.approx(0.01 * math.exp(-1.0 / default_config.ground.pitch_decay_s))
+
+
+def world_to_vehicle(P: np.ndarray, ego_xy: np.ndarray, psi: float) -> np.ndarray:
+    c, s = math.cos(psi), math.sin(psi)
+    d = P - ego_xy
+    return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
+
+
+@pytest.mark.parametrize("obj_vel", [(0.0, 0.0), (-3.0, 1.5)])
+def test_ground_filter_removes_ego_motion(default_config: Config, obj_vel: tuple[float, float]
+                                          ) -> None:
+    """Ego on an arc at 12 m/s, 0.15 rad/s: the filter finds the object's velocity over ground."""
+    cfg = default_config.ground
+    rng = np.random.default_rng(0)
+    speed, yaw, dt = 12.0, 0.15, 1.0 / 30.0
+    obj = np.array([30.0, 3.0])
+    ego = np.zeros(2)
+    psi = 0.0
+    g = None
+    R = np.diag([0.3, 0.1]) ** 2
+    for k in range(90):
+        t = k * dt
+        if k:
+            # exact arc motion of the ego vehicle over dt, object at constant velocity
+            ego = ego + speed * dt * np.array([math.cos(psi + 0.5 * yaw * dt),
+                                               math.sin(psi + 0.5 * yaw * dt)])
+            psi += yaw * dt
+            obj = obj + np.asarray(obj_vel) * dt
+        z = world_to_vehicle(obj, ego, psi) + rng.normal(0, [0.3, 0.1])
+        contact = GroundContact(z=z, R=R)
+        sensors = SensorSample(t, speed, yaw)
+        g = ground_init(contact, t, cfg) if g is None else ground_update(
+            ground_predict(g, dt, sensors, cfg), contact, t)
+    assert g is not None
+    # the velocity over ground, expressed in the current vehicle frame
+    c, s = math.cos(psi), math.sin(psi)
+    v_true = np.array([c * obj_vel[0] + s * obj_vel[1], -s * obj_vel[0] + c * obj_vel[1]])
+    np.testing.assert_allclose(g.velocity, v_true, atol=0.6)
+    np.testing.assert_allclose(g.position, world_to_vehicle(obj, ego, psi), atol=0.3)
+
+
+def test_path_prediction_collision_and_near_miss(default_config: Config) -> None:
+    mount = default_config.mount  # front 3.9 m, width 1.8 m
+    # crossing at 2.5 m/s from the right into the middle of the bumper at 10 m/s
+    hit = predict_path(np.array([23.9, -5.0]), np.array([0.0, 2.5]), 10.0, 0.0, mount,
+                       margin=0.3, radius=0.2, horizon_s=6.0)
+    assert hit.ttc == pytest.approx((23.9 - 4.1) / 10.0, abs=0.05) and hit.closest == 0.0
+    # 2 s later it would have crossed: passes 1.5 m in front of the car... after it
+    miss = predict_path(np.array([23.9, -5.0]), np.array([0.0, 5.0]), 10.0, 0.0, mount,
+                        margin=0.3, radius=0.2, horizon_s=6.0)
+    assert miss.ttc is None and miss.closest > 1.0
+    # lead car driving away: no contact
+    away = predict_path(np.array([20.0, 0.0]), np.array([15.0, 0.0]), 10.0, 0.0, mount,
+                        0.3, 1.0, 6.0)
+    assert away.ttc is None
+    # in a left bend the ego arc reaches an object on the left that a straight path misses
+    # (the front bumper's circle about the turn centre (0, 50 m) passes through (20, 4))
+    bend = predict_path(np.array([20.0, 4.0]), np.zeros(2), 10.0, 0.2, mount, 0.3, 0.3, 6.0)
+    straight = predict_path(np.array([20.0, 4.0]), np.zeros(2), 10.0, 0.0, mount, 0.3, 0.3, 6.0)
+    assert bend.ttc is not None and straight.ttc is None
+
+
+def looming_points(center: tuple[float, float], ratio: float, n: int = 30, seed: int = 0
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    prev = np.asarray(center) + rng.uniform(-15, 15, (n, 2))
+    cur = np.asarray(center) + np.array([0.4, -0.1]) + ratio * (prev - np.asarray(center))
+    return cur, cur - prev
+
+
+def test_scale_change_measured_from_correspondences() -> None:
+    cur, flow = looming_points((400.0, 260.0), 1.02)
+    m = measure_expansion(cur, flow, np.ones(len(cur)), None, CAM)
+    assert m is not None and m.kappa == pytest.approx(0.02, abs=1e-6)
+    # a camera rotation adds its own flow; with the refined rotation given it is removed
+    r = np.array([0.004, -0.006, 0.003])
+    prev = cur - flow
+    R = euler_to_matrix(r)
+    cur_rot = cur + rotational_flow(CAM, cur, R)
+    flow_rot = cur_rot - prev
+    m2 = measure_expansion(cur_rot, flow_rot, np.ones(len(cur)), r, CAM)
+    assert m2 is not None and m2.kappa == pytest.approx(0.02, abs=2e-3)
+    # outliers (a few wrong flows) are rejected
+    flow_bad = flow.copy()
+    flow_bad[:3] += 5.0
+    m3 = measure_expansion(cur, flow_bad, np.ones(len(cur)), None, CAM)
+    assert m3 is not None and m3.kappa == pytest.approx(0.02, abs=2e-3)
+    assert measure_expansion(cur[:3], flow[:3], np.ones(3), None, CAM) is None
+
+
+def test_scale_filter_converges_to_ttc_of_a_constant_approach() -> None:
+    dt, c = 1.0 / 30.0, 10.0
+    rng = np.random.default_rng(1)
+    s = None
+    Z = 25.0
+    for k in range(45):
+        Z_new = Z - c * dt
+        cur, flow = looming_points((300.0, 240.0), Z / Z_new, seed=k)
+        flow = flow + rng.normal(0, 0.1, flow.shape)
+        m = measure_expansion(cur, flow, np.ones(len(cur)), None, CAM)
+        assert m is not None
+        if s is not None:
+            s = scale_predict(s, dt, 0.3)
+        s = scale_update(s, m, dt)
+        Z = Z_new
+    est = scale_ttc(s, 5)
+    assert est is not None and est[0] == pytest.approx(Z / c, rel=0.1)
+    # a receding object has no TTC
+    s_away = None
+    for k in range(10):
+        cur, flow = looming_points((300.0, 240.0), 0.99, seed=k)
+        m = measure_expansion(cur, flow, np.ones(len(cur)), None, CAM)
+        assert m is not None
+        s_away = scale_update(s_away, m, dt)
+    assert scale_ttc(s_away, 5) is None
+
+
+def test_bumper_correction_and_fusion(default_config: Config) -> None:
+    mount = default_config.mount  # camera 2.0 m behind the bumper
+    assert bumper_ttc((2.0, 0.1), 20.0, mount) == pytest.approx((1.8, 0.09))
+    assert bumper_ttc((2.0, 0.1), None, mount) == (2.0, 0.1)
+    f = fuse((2.0, 0.1), (2.4, 0.2))
+    assert f is not None and f[0] == pytest.approx((2.0 / 0.01 + 2.4 / 0.04) / (1 / 0.01 + 1 / 0.04))
+    assert f[1] < 0.1
+    assert fuse(None, (1.0, 0.1)) == (1.0, 0.1) and fuse(None, None) is None

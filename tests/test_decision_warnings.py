@@ -1,0 +1,108 @@
+"""Warning levels: thresholds, persistence, hysteresis, hold; no flicker, no single-frame warning."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from appliance.config import Config, WarningConfig
+from appliance.decision.warnings import TrackThreat, WarningState, warning_step
+from appliance.messages import TrackReport, WarningEvent
+
+FPS = 30.0
+
+
+def threat(tid: int, ttc: float | None, on_course: bool = True, wide: bool | None = None
+           ) -> TrackThreat:
+    rep = TrackReport(id=tid, bbox=(300.0, 200.0, 340.0, 280.0), probability=0.8, flow=(0.0, 0.0),
+                      ttc_s=ttc, distance_m=None if ttc is None else 10.0 * ttc,
+                      bearing_rad=-0.1)
+    return TrackThreat(report=rep, on_course=on_course,
+                       on_course_wide=on_course if wide is None else wide)
+
+
+def run(cfg: WarningConfig, frames: list[tuple[TrackThreat, ...]]
+        ) -> tuple[list[int], list[WarningEvent]]:
+    state = WarningState()
+    levels: list[int] = []
+    events: list[WarningEvent] = []
+    for k, threats in enumerate(frames):
+        state, ev, _ = warning_step(state, threats, k / FPS, k, cfg)
+        levels.append(state.level)
+        events.extend(ev)
+    return levels, events
+
+
+def test_no_flicker_on_a_ttc_oscillating_around_the_threshold(default_config: Config) -> None:
+    cfg = default_config.warning  # 3.0 / 2.0 s, hysteresis 0.3 s, persistence 3, hold 0.5 s
+    # a noisy approach (+-0.1 s) down to 1.7 s, then a TTC jittering +-0.2 s around the 2.0 s
+    # threshold for two seconds (the object slowed down)
+    ttcs = [t + 0.1 * (-1) ** k for k, t in enumerate(np.linspace(3.5, 1.7, 40))]
+    ttcs += [2.0 + 0.2 * (-1) ** k for k in range(60)]
+    levels, events = run(cfg, [(threat(1, t),) for t in ttcs])
+    assert [e.level for e in events] == [1, 2]  # once up to caution, once up to warning
+    assert levels[-60:].count(2) >= 55  # held through the jitter
+    # without hysteresis, persistence and hold, the same input flickers
+    bare = default_config.with_overrides({"warning": {
+        "hysteresis_s": 0.0, "min_persistence_frames": 1, "hold_s": 0.0}}).warning
+    _, bare_events = run(bare, [(threat(1, t),) for t in ttcs])
+    assert len(bare_events) > 20
+
+
+def test_no_single_frame_warning(default_config: Config) -> None:
+    cfg = default_config.warning
+    frames = [(threat(1, None),)] * 10 + [(threat(1, 0.8),)] + [(threat(1, None),)] * 10
+    frames += [(threat(1, 0.8),)] * 2 + [(threat(1, 5.0),)] * 10
+    levels, events = run(cfg, frames)
+    assert events == [] and max(levels) == 0
+    # three consecutive frames: issued on the third
+    levels, events = run(cfg, [(threat(1, None),)] * 5 + [(threat(1, 0.8),)] * 3)
+    assert [(e.level, e.frame) for e in events] == [(2, 7)]
+
+
+def test_path_outside_the_corridor_gives_no_warning(default_config: Config) -> None:
+    cfg = default_config.warning
+    levels, events = run(cfg, [(threat(1, 1.0, on_course=False),)] * 20)
+    assert events == [] and max(levels) == 0
+
+
+def test_clears_after_hysteresis_and_hold_with_one_event(default_config: Config) -> None:
+    cfg = default_config.warning
+    frames = [(threat(1, 1.5),)] * 10 + [(threat(1, 2.2),)] * 10 + [(threat(1, 4.0),)] * 30
+    levels, events = run(cfg, frames)
+    # 2.2 s is within the 0.3 s hysteresis of the 2.0 s threshold: still level 2
+    assert levels[10:20] == [2] * 10
+    assert [e.level for e in events] == [2, 0]
+    clear = events[-1]
+    # the cleared event names the track and what it shows now
+    assert clear.track == 1 and clear.frame == 20 and clear.ttc_s == 4.0
+
+
+def test_lowered_only_after_the_hold_time(default_config: Config) -> None:
+    cfg = default_config.with_overrides({"warning": {"hold_s": 1.0}}).warning
+    frames = [(threat(1, 1.5),)] * 3 + [(threat(1, None),)] * 60
+    levels, events = run(cfg, frames)
+    assert [e.level for e in events] == [2, 0]
+    issued, cleared = events
+    assert cleared.t - issued.t >= 1.0 - 1e-9
+    assert cleared.t - issued.t < 1.0 + 2.0 / FPS
+
+
+def test_lost_track_keeps_the_warning_until_its_contact_is_due(default_config: Config) -> None:
+    cfg = default_config.warning  # hold 0.5 s
+    frames: list[tuple[TrackThreat, ...]] = [(threat(7, 1.4 - k / FPS),) for k in range(6)]
+    frames += [()] * 60  # the object went under the bonnet
+    levels, events = run(cfg, frames)
+    assert [e.level for e in events] == [2, 0]
+    last_seen_t, last_ttc = 5 / FPS, 1.4 - 5 / FPS
+    assert events[-1].t >= last_seen_t + last_ttc - 1e-9
+    assert events[-1].t <= last_seen_t + last_ttc + 2.0 / FPS
+
+
+def test_highest_level_wins_and_events_name_the_track(default_config: Config) -> None:
+    cfg = default_config.warning
+    frames = [(threat(1, 2.8), threat(2, 1.5)) for _ in range(5)]
+    levels, events = run(cfg, frames)
+    assert [(e.level, e.track) for e in events] == [(2, 2)]
+    e = events[0]
+    assert e.bbox == (300.0, 200.0, 340.0, 280.0) and e.ttc_s == 1.5 and e.distance_m == 15.0
+    assert e.bearing_rad == -0.1 and e.frame == 2 and e.t == 2 / FPS

@@ -29,7 +29,7 @@ HMI_BUS = "vcan1"
 def _unavailable(reason: str) -> None:
     if IN_VM:
         pytest.fail(f"in the vcan VM: {reason}")
-    pytest.skip(reason)
+    pytest.skip(f"{reason} (tests/test_vcan_vm.py runs these in the vcan VM)")
 
 
 def require_socketcan(channel: str) -> None:

@@ -108,6 +108,7 @@ class FlowConfig:
     max_iterations: int = _p(1, 200)
     epsilon: float = _p(0.0, lo_open=True)
     fb_threshold_px: float = _p(0.0, lo_open=True)
+    fb_check_particles: bool = _p()
 
 
 @dataclass(frozen=True)
@@ -124,6 +125,7 @@ class DetectionConfig:
     epipole_radius_px: float = _p(0.0)
     standstill_speed_m_s: float = _p(0.0)
     standstill_residual_px: float = _p(0.0, lo_open=True)
+    weight_floor: float = _p(0.0, 1.0)
 
 
 @dataclass(frozen=True)
@@ -140,6 +142,7 @@ class RefinementConfig:
     msac_hypotheses: int = _p(1, 10000)
     msac_sample_size: int = _p(3, 100)
     lm_iterations: int = _p(1, 1000)
+    msac_lm_iterations: int = _p(1, 1000)
 
 
 @dataclass(frozen=True)

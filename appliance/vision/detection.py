@@ -1,0 +1,136 @@
+"""Section 2: the particle filter of fig. 3 with the modified resampling of fig. 4.
+
+A particle is an image position where optical flow is measured. Per frame:
+
+1. *predict*: each particle moves with its measured flow (its position in the new
+   frame is the end of its correspondence) and diffusion is added after resampling;
+2. *weigh*: the likelihood of independent motion at the measurement (``likelihood``);
+3. *resample*: ``(1 - importance_fraction) N`` particles by systematic resampling of
+   the weights; ``importance_fraction N`` fresh particles from the importance
+   function g, whose weights at the next frame carry the correction of eq. 4.
+
+Eq. 4 as printed, ``w = p(y|theta) / g(theta)``, is a density ratio and only makes
+sense against the density the filter would otherwise sample from; we use the
+uniform density u over the image (the filter's "object appears anywhere" prior):
+``w = p(y|theta) u / g(theta)``. For ``importance = "uniform"`` the correction is 1;
+for ``"road"`` (g biased to the band around and below the horizon where road users
+appear) samples inside the band are weighted down and those outside up.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from appliance.config import DetectionConfig
+from appliance.vision.geometry import FloatArray
+
+ROAD_BAND_SHARE = 0.75       # share of g's mass in the road band ("road" importance)
+ROAD_BAND_ABOVE = 0.125      # the band starts this fraction of the image height above the horizon
+
+
+@dataclass(frozen=True)
+class ImportanceDensity:
+    """Importance function g over a width x height image.
+
+    ``band_top`` None: uniform. Otherwise a mixture: ``band_share`` of the mass
+    uniform over rows ``v >= band_top``, the rest uniform over the whole image.
+    """
+
+    width: int
+    height: int
+    band_top: float | None = None
+    band_share: float = ROAD_BAND_SHARE
+
+    def _band(self) -> tuple[float, float] | None:
+        if self.band_top is None:
+            return None
+        top = float(np.clip(self.band_top, 0.0, self.height - 1.0))
+        return top, (self.height - top) / self.height   # top row, band area / image area
+
+    def sample(self, rng: np.random.Generator, n: int) -> FloatArray:
+        """n positions (n, 2) px drawn from g."""
+        u = rng.random((n, 2))
+        pos = np.column_stack([u[:, 0] * (self.width - 1.0), u[:, 1] * (self.height - 1.0)])
+        band = self._band()
+        if band is not None:
+            top = band[0]
+            in_band = rng.random(n) < self.band_share
+            pos[in_band, 1] = top + u[in_band, 1] * (self.height - 1.0 - top)
+        return pos
+
+    def correction(self, uv: NDArray[np.floating]) -> FloatArray:
+        """Eq. 4's factor ``u / g`` at positions (n, 2): 1 everywhere for uniform g."""
+        uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
+        band = self._band()
+        if band is None:
+            return np.ones(len(uv))
+        top, area = band
+        g_over_u = (1.0 - self.band_share) + np.where(uv[:, 1] >= top, self.band_share / area, 0.0)
+        return 1.0 / g_over_u
+
+
+def road_importance(width: int, height: int, horizon_row: float | None) -> ImportanceDensity:
+    """g biased to the band from a little above the horizon to the bottom of the image."""
+    if horizon_row is None or not np.isfinite(horizon_row) or horizon_row >= height - 1:
+        return ImportanceDensity(width, height)
+    return ImportanceDensity(width, height, band_top=horizon_row - ROAD_BAND_ABOVE * height)
+
+
+def systematic_resample(weights: NDArray[np.floating], n: int, offset: float) -> NDArray[np.int64]:
+    """n indices by systematic resampling of normalised ``weights`` with one offset in [0, 1).
+
+    The algorithm of ``filterpy.monte_carlo.systematic_resample`` (positions
+    ``(offset + k) / n`` on the cumulative weights), with the offset passed in:
+    filterpy draws it from numpy's global random state, which would make replays
+    depend on whatever else used it. ``tests/test_vision_detection.py`` checks the
+    two agree.
+    """
+    w = np.asarray(weights, dtype=np.float64)
+    cumulative = np.cumsum(w)
+    cumulative[-1] = 1.0   # against rounding
+    positions = (offset + np.arange(n)) / n
+    return np.minimum(np.searchsorted(cumulative, positions, side="right"), len(w) - 1)
+
+
+def resampling_weights(likelihood: NDArray[np.floating], valid: NDArray[np.bool_],
+                       correction: NDArray[np.floating], floor: float) -> FloatArray:
+    """Weights for resampling: likelihood (floored) times eq. 4's correction; 0 where invalid."""
+    w = np.maximum(np.asarray(likelihood, dtype=np.float64), floor) * correction
+    return np.where(np.asarray(valid, dtype=bool) & np.isfinite(w), w, 0.0)
+
+
+def next_particles(x_cur: NDArray[np.floating], likelihood: NDArray[np.floating],
+                   valid: NDArray[np.bool_], correction: NDArray[np.floating],
+                   g: ImportanceDensity, cfg: DetectionConfig,
+                   rng: np.random.Generator) -> tuple[FloatArray, FloatArray]:
+    """Fig. 4: resample, diffuse, add importance samples.
+
+    x_cur: (N, 2) particle positions in the current frame (ends of the measured
+    flow: the motion model of the prediction step); likelihood, valid, correction:
+    (N,) each. Returns the positions (cfg.particles, 2) where flow is measured in
+    the next frame and their eq. 4 corrections (1 for resampled particles).
+    With no valid particle (black frame, all tracks lost) every particle comes from g.
+    """
+    n = cfg.particles
+    n_imp = int(round(cfg.importance_fraction * n))
+    w = resampling_weights(likelihood, valid, correction, cfg.weight_floor)
+    total = float(w.sum())
+    if total <= 0.0:
+        n_imp = n
+    n_res = n - n_imp
+    out = np.empty((n, 2))
+    corr = np.ones(n)
+    if n_res > 0:
+        idx = systematic_resample(w / total, n_res, float(rng.random()))
+        moved = np.asarray(x_cur, dtype=np.float64)[idx] + rng.normal(0.0, cfg.diffusion_px, (n_res, 2))
+        moved[:, 0] = np.clip(moved[:, 0], 0.0, g.width - 1.0)
+        moved[:, 1] = np.clip(moved[:, 1], 0.0, g.height - 1.0)
+        out[:n_res] = moved
+    if n_imp > 0:
+        fresh = g.sample(rng, n_imp)
+        out[n_res:] = fresh
+        corr[n_res:] = g.correction(fresh)
+    return out, corr

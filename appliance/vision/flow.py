@@ -1,0 +1,105 @@
+"""Sparse optical flow: pyramidal Lucas-Kanade for both point pools, forward-backward check.
+
+OpenCV's Python binding cannot take a prebuilt pyramid (``calcOpticalFlowPyrLK``
+rejects the list ``buildOpticalFlowPyramid`` returns), so each frame's pyramid is
+built once by tracking the particle pool and the static pool in *one* forward
+call; the backward check of the points that need it is one more call.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from appliance.config import FlowConfig
+from appliance.vision.geometry import FloatArray
+
+CORNER_MIN_EIGENVALUE = 1e-3   # cornerMinEigenVal on 8-bit input; flat or black image: 0
+CORNER_QUALITY = 0.01          # a candidate needs at least this fraction of the best cell's value
+
+
+@dataclass(frozen=True)
+class Tracks:
+    """Result of :func:`track`: end points (M, 2) px, valid (M,) bool, fb_error (M,) px.
+
+    ``fb_error`` is NaN where no backward check was made.
+    """
+
+    end: FloatArray
+    valid: NDArray[np.bool_]
+    fb_error: FloatArray
+
+
+def lk_params(cfg: FlowConfig) -> dict[str, object]:
+    """Keyword arguments of ``cv2.calcOpticalFlowPyrLK`` from the ``[flow]`` section."""
+    return {
+        "winSize": (cfg.window_px, cfg.window_px),
+        "maxLevel": cfg.pyramid_levels,
+        "criteria": (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, cfg.max_iterations,
+                     cfg.epsilon),
+    }
+
+
+def track(prev: NDArray[np.uint8], cur: NDArray[np.uint8], points: NDArray[np.floating],
+          check_backward: NDArray[np.bool_], cfg: FlowConfig) -> Tracks:
+    """Track ``points`` (M, 2) px from ``prev`` to ``cur`` (8-bit gray, same size).
+
+    One forward LK call for all points; one backward call for the points flagged in
+    ``check_backward`` (M,), which stay valid only if they come back within
+    ``cfg.fb_threshold_px``. A point is valid when LK converged (status 1, which
+    includes OpenCV's minimum-eigenvalue test, so a flat or black image gives no
+    valid points), the result is finite and it ends inside the image.
+    """
+    pts = np.ascontiguousarray(np.asarray(points, dtype=np.float32).reshape(-1, 1, 2))
+    m = pts.shape[0]
+    h, w = prev.shape[:2]
+    if m == 0:
+        empty = np.zeros((0, 2))
+        return Tracks(empty, np.zeros(0, dtype=bool), np.zeros(0))
+    params = lk_params(cfg)
+    nxt, status, _ = cv2.calcOpticalFlowPyrLK(prev, cur, pts, None, **params)  # type: ignore[call-overload]
+    end = nxt.reshape(-1, 2).astype(np.float64)
+    valid = status.reshape(-1).astype(bool) & np.all(np.isfinite(end), axis=1)
+    valid &= (end[:, 0] >= 0.0) & (end[:, 0] <= w - 1.0) & (end[:, 1] >= 0.0) & (end[:, 1] <= h - 1.0)
+    fb_error = np.full(m, np.nan)
+    back = np.flatnonzero(np.asarray(check_backward, dtype=bool) & valid)
+    if back.size:
+        fwd = np.ascontiguousarray(nxt[back])
+        ret, status_b, _ = cv2.calcOpticalFlowPyrLK(cur, prev, fwd, None, **params)  # type: ignore[call-overload]
+        err = np.linalg.norm(ret.reshape(-1, 2) - pts[back].reshape(-1, 2), axis=1)
+        fb_error[back] = err
+        ok = status_b.reshape(-1).astype(bool) & (err < cfg.fb_threshold_px)
+        valid[back] = ok
+    return Tracks(end, valid, fb_error)
+
+
+def corner_candidates(gray: NDArray[np.uint8], cell_px: int) -> tuple[FloatArray, FloatArray]:
+    """The best corner of every ``cell_px`` x ``cell_px`` cell: spread static-pool candidates.
+
+    Shi-Tomasi strength (``cv2.cornerMinEigenVal``) on the half-resolution image; per
+    cell the strongest pixel is kept if it is not flat (absolute floor) and at least
+    ``CORNER_QUALITY`` of the best cell. Returns positions (C, 2) px in the full image
+    and their strengths (C,). A flat or black image gives none.
+    """
+    half = cv2.pyrDown(gray)
+    eig = cv2.cornerMinEigenVal(half, 3, 3)
+    c = max(2, cell_px // 2)
+    h, w = eig.shape
+    nr, nc = h // c, w // c
+    if nr == 0 or nc == 0:
+        return np.zeros((0, 2)), np.zeros(0)
+    blocks = eig[: nr * c, : nc * c].reshape(nr, c, nc, c).transpose(0, 2, 1, 3).reshape(nr, nc, c * c)
+    k = np.argmax(blocks, axis=-1)
+    strength = np.take_along_axis(blocks, k[..., None], axis=-1)[..., 0].astype(np.float64)
+    dr, dc = np.divmod(k, c)
+    # half-resolution pixel i covers full-resolution pixels 2i and 2i + 1
+    y = (np.arange(nr)[:, None] * c + dr) * 2.0 + 0.5
+    x = (np.arange(nc)[None, :] * c + dc) * 2.0 + 0.5
+    pos = np.column_stack([x.ravel(), y.ravel()])
+    strength = strength.ravel()
+    best = float(strength.max()) if strength.size else 0.0
+    keep = (strength > CORNER_MIN_EIGENVALUE) & (strength >= CORNER_QUALITY * best)
+    return pos[keep], strength[keep]

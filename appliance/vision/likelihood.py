@@ -1,0 +1,201 @@
+"""Likelihood of independent motion at a flow measurement (section 2, eqs. 5-6, and beyond).
+
+Three cues, each a probability-like value in [0, 1] (0 = consistent with the
+static scene), combined as ``detection.likelihood`` says:
+
+* **direction** (eqs. 5-6): angle alpha between the measured translational flow
+  ``x_cur - H x_prev`` (measured flow minus F_R of the refined rotation) and the
+  direction a static point's flow must have there, away from the epipole for
+  forward motion. Eq. 6 as printed, ``1 - N(alpha; 0, sigma_l)``, goes negative
+  when ``sigma_l < 1/sqrt(2 pi)`` (about 23 degrees, i.e. for every well measured
+  flow); we divide the Gaussian by its peak instead, ``1 - exp(-alpha^2 / 2
+  sigma_l^2)``: the same soft threshold, 0 at alpha = 0, rising with alpha, in
+  [0, 1) for every sigma_l.
+* **magnitude** (beyond the paper, for constant-bearing collision courses): below
+  the horizon a static point is at most as far as the road point seen at its
+  pixel, so its translational flow is at least as long as the road's. A flow much
+  shorter than that bound (projected on the static direction) is independent motion.
+* **standstill**: with no translation, no direction exists; the residual flow
+  magnitude ``|x_cur - H x_prev|`` flags motion instead.
+
+Degenerate cases, handled explicitly:
+
+* near the epipole (``d_e < epipole_radius_px``) and for near-zero flow
+  (``d_l < min_flow_px``) the direction is undefined: the direction cue is 0;
+* eq. 5's ``arcsin(sigma / d)`` is continued past ``sigma > d`` as
+  ``(pi/2) sigma / d``, so a flow shorter than its own noise gets an ever wider
+  sigma_l and an ever weaker direction cue instead of a NaN;
+* above the horizon (no road behind the pixel) or without a metric translation
+  (CAN missing) the magnitude cue is 0;
+* at a standstill only the standstill cue is used, whatever the mode.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from appliance.config import DetectionConfig
+from appliance.vision.geometry import FloatArray
+
+MIN_RAY_DROP = 1e-6   # a ray must point down the road normal by this much to meet the road
+
+
+@dataclass(frozen=True)
+class CameraMotion:
+    """Camera motion used by the likelihood: ``X_cur = R X_prev + t``.
+
+    R: (3, 3); t_dir: (3,) unit translation direction (ignored at a standstill);
+    t_m: (3,) metric translation (m) or None when its length is unknown;
+    K: (3, 3) intrinsics (ideal pixels).
+    """
+
+    R: FloatArray
+    t_dir: FloatArray
+    t_m: FloatArray | None
+    standstill: bool
+    K: FloatArray
+
+
+@dataclass(frozen=True)
+class RoadPlane:
+    """The road in the current camera frame: unit ``normal`` (3,) pointing up, camera height (m)."""
+
+    normal: FloatArray
+    height_m: float
+
+
+@dataclass(frozen=True)
+class Cues:
+    """Per-measurement cues (N,) in [0, 1]; ``direction``/``magnitude`` are None at a standstill."""
+
+    direction: FloatArray | None
+    magnitude: FloatArray | None
+    standstill: FloatArray | None
+
+
+def derotate(K: FloatArray, R: FloatArray, x_prev: NDArray[np.floating]) -> FloatArray:
+    """``H x_prev`` (N, 2) with ``H = K R K^-1``: where the rotation alone moves each pixel."""
+    x = np.asarray(x_prev, dtype=np.float64).reshape(-1, 2)
+    H = K @ R @ np.linalg.inv(K)
+    q = x @ H[:, :2].T + H[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return q[:, :2] / q[:, 2:3]
+
+
+def road_depth(road: RoadPlane, K: FloatArray, uv: NDArray[np.floating]) -> FloatArray:
+    """Depth Z (m, camera z) of the road point seen at ideal pixels ``uv`` (N, 2); NaN above the horizon."""
+    uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
+    rx = (uv[:, 0] - K[0, 2]) / K[0, 0]
+    ry = (uv[:, 1] - K[1, 2]) / K[1, 1]
+    drop = rx * road.normal[0] + ry * road.normal[1] + road.normal[2]   # n . ray, ray z = 1
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(drop < -MIN_RAY_DROP, -road.height_m / drop, np.nan)
+
+
+def horizon_row(road: RoadPlane, K: FloatArray) -> float | None:
+    """Row (ideal px) where the road's vanishing line crosses the principal column, or None.
+
+    The vanishing line is ``K^-T n``; at ``u = c_x`` it gives ``v = c_y - f_y n_z / n_y``.
+    None when the line is (nearly) vertical in the image.
+    """
+    n = road.normal
+    if abs(n[1]) < 1e-6:
+        return None
+    return float(K[1, 2] - K[1, 1] * n[2] / n[1])
+
+
+def _angular_error(sigma: float, d: FloatArray) -> FloatArray:
+    """``arcsin(sigma / d)`` of eq. 5, continued as ``(pi/2) sigma / d`` beyond sigma = d (rad)."""
+    with np.errstate(divide="ignore"):
+        ratio = sigma / np.maximum(d, 1e-12)
+    return np.where(ratio <= 1.0, np.arcsin(np.minimum(ratio, 1.0)), 0.5 * np.pi * ratio)
+
+
+def direction_cue(flow_t: FloatArray, static_dir: FloatArray, d_e: FloatArray,
+                  cfg: DetectionConfig) -> FloatArray:
+    """Eqs. 5-6: flow_t (N, 2) translational flow, static_dir (N, 2) direction a static
+    point's flow must have, d_e (N,) distance to the epipole (px; inf when at infinity)."""
+    d_l = np.hypot(flow_t[:, 0], flow_t[:, 1])
+    cross = flow_t[:, 0] * static_dir[:, 1] - flow_t[:, 1] * static_dir[:, 0]
+    dot = flow_t[:, 0] * static_dir[:, 0] + flow_t[:, 1] * static_dir[:, 1]
+    alpha = np.arctan2(np.abs(cross), dot)
+    sigma_l = _angular_error(cfg.sigma_e_px, d_e) + _angular_error(cfg.sigma_p_px, d_l)  # eq. 5
+    p = 1.0 - np.exp(-alpha**2 / (2.0 * sigma_l**2))                                   # eq. 6
+    defined = (d_l >= cfg.min_flow_px) & (d_e >= cfg.epipole_radius_px)
+    return np.where(defined & np.isfinite(p), p, 0.0)
+
+
+def magnitude_cue(flow_t: FloatArray, x_cur: FloatArray, motion: CameraMotion, road: RoadPlane,
+                  cfg: DetectionConfig) -> FloatArray:
+    """Flow-length cue: how much shorter than the road's static flow the measured flow is.
+
+    A static point seen at ``x_cur`` at depth Z has the translational flow
+    ``f_s = ((K t)_xy - t_z x_cur) / (Z - t_z)`` (t metric). With Z the road depth it
+    is the shortest static flow there. Deficit ``delta = |f_s| - flow_t . f_s/|f_s|``;
+    its std ``hypot(magnitude_sigma |f_s|, sigma_p)``; cue ``1 - exp(-delta+^2 / 2 std^2)``.
+    """
+    n = x_cur.shape[0]
+    if motion.t_m is None:
+        return np.zeros(n)
+    K, t = motion.K, motion.t_m
+    Z = road_depth(road, K, x_cur)
+    Kt = K @ t
+    with np.errstate(divide="ignore", invalid="ignore"):
+        depth_prev = Z - t[2]
+        f_s = (Kt[:2][None, :] - t[2] * x_cur) / depth_prev[:, None]
+        length = np.hypot(f_s[:, 0], f_s[:, 1])
+        along = (flow_t[:, 0] * f_s[:, 0] + flow_t[:, 1] * f_s[:, 1]) / length
+        deficit = np.maximum(length - along, 0.0)
+        std = np.hypot(cfg.magnitude_sigma * length, cfg.sigma_p_px)
+        p = 1.0 - np.exp(-deficit**2 / (2.0 * std**2))
+    ok = np.isfinite(p) & (depth_prev > 0.0)
+    return np.where(ok, p, 0.0)
+
+
+def standstill_cue(flow_t: FloatArray, cfg: DetectionConfig) -> FloatArray:
+    """``1 - 2^-(r / r0)^2`` for residual flow length r: 0.5 at ``standstill_residual_px``."""
+    r = np.hypot(flow_t[:, 0], flow_t[:, 1]) / cfg.standstill_residual_px
+    return np.where(np.isfinite(r), 1.0 - np.exp2(-(r**2)), 0.0)
+
+
+def motion_cues(x_prev: NDArray[np.floating], x_cur: NDArray[np.floating], motion: CameraMotion,
+                road: RoadPlane | None, cfg: DetectionConfig) -> Cues:
+    """All cues at N measurements ``x_prev -> x_cur`` (ideal pixels, (N, 2) each)."""
+    x_prev = np.asarray(x_prev, dtype=np.float64).reshape(-1, 2)
+    x_cur = np.asarray(x_cur, dtype=np.float64).reshape(-1, 2)
+    p = derotate(motion.K, motion.R, x_prev)
+    flow_t = x_cur - p                                  # measured flow minus F_R
+    if motion.standstill:
+        return Cues(None, None, standstill_cue(flow_t, cfg))
+    Kt = motion.K @ motion.t_dir
+    static_dir = Kt[:2][None, :] - motion.t_dir[2] * p  # direction of static flow at p
+    if abs(motion.t_dir[2]) > 1e-9:
+        e = Kt[:2] / motion.t_dir[2]
+        d_e = np.hypot(p[:, 0] - e[0], p[:, 1] - e[1])
+    else:
+        d_e = np.full(len(p), np.inf)
+    direction = direction_cue(flow_t, static_dir, d_e, cfg)
+    magnitude = (magnitude_cue(flow_t, x_cur, motion, road, cfg) if road is not None
+                 else np.zeros(len(p)))
+    return Cues(direction, magnitude, None)
+
+
+def combine(cues: Cues, mode: str) -> FloatArray:
+    """Weight of each measurement for ``mode`` direction | magnitude | combined.
+
+    ``combined`` is the noisy-OR ``1 - (1 - p_dir)(1 - p_mag)``: either cue alone can
+    flag independent motion (crossing objects by direction, collision courses by length).
+    """
+    if cues.standstill is not None:
+        return cues.standstill
+    assert cues.direction is not None and cues.magnitude is not None
+    if mode == "direction":
+        return cues.direction
+    if mode == "magnitude":
+        return cues.magnitude
+    if mode == "combined":
+        return 1.0 - (1.0 - cues.direction) * (1.0 - cues.magnitude)
+    raise ValueError(f"unknown likelihood mode {mode!r} (direction, magnitude or combined)")

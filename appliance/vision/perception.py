@@ -1,0 +1,228 @@
+"""The vision core's per-frame step: flow, refinement (section 3) and detection (section 2).
+
+``perceive(state, frame, sensors, prob_map, cfg, camera) -> (state, ego, particles)``
+is a pure function: time comes in with the frame, randomness from a generator
+seeded by ``(seed, frame count)``, so the same inputs always give the same outputs
+and a replay reproduces a drive exactly.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from appliance.config import Config
+from appliance.errors import UsageError
+from appliance.messages import EgoMotion, Frame, ParticleSet, ProbabilityMap, SensorSample
+from appliance.vision.detection import ImportanceDensity, next_particles, road_importance
+from appliance.vision.epipolar import translation_from_theta
+from appliance.vision.flow import corner_candidates, track
+from appliance.vision.geometry import (
+    FloatArray,
+    PinholeCamera,
+    epipole,
+    euler_to_matrix,
+    matrix_to_euler,
+    vehicle_from_camera_rotation,
+)
+from appliance.vision.likelihood import CameraMotion, RoadPlane, combine, horizon_row, motion_cues
+from appliance.vision.msac import weighted_minimal_samples
+from appliance.vision.prior import PriorMotion, prior_motion
+from appliance.vision.refinement import MapProblem, refine_motion
+
+ATTITUDE_LEAK = 0.9   # per frame: the body pitch/roll estimate decays towards the mount's
+
+
+class FrameFormatError(UsageError):
+    """A frame that does not fit the camera model (size or pixel type); the frame is not used."""
+
+
+@dataclass(frozen=True)
+class VisionState:
+    """What the vision core carries from one frame to the next.
+
+    prev_image: (H, W) uint8 gray of the previous frame (None before the first);
+    prev_t: its capture time (s); prev_sensors: CAN/PTU sample at that time;
+    particles: (N, 2) px, where flow is measured from the previous frame;
+    correction: (N,) eq. 4 factor of each particle (1 unless drawn from g);
+    attitude: (3, 3) estimated rotation from the nominal camera (mount + PTU on a
+    level vehicle) to the actual one (body pitch/roll), used for the road plane;
+    seed, frames: the random generator of frame k is ``default_rng([seed, k])``.
+    """
+
+    seed: int
+    frames: int
+    prev_image: NDArray[np.uint8] | None
+    prev_t: float
+    prev_sensors: SensorSample | None
+    particles: FloatArray
+    correction: FloatArray
+    attitude: FloatArray
+
+
+def _rng(seed: int, k: int) -> np.random.Generator:
+    return np.random.default_rng([seed, k])
+
+
+def init_vision_state(cfg: Config, camera: PinholeCamera, seed: int) -> VisionState:
+    """State before the first frame: particles spread by the importance function g."""
+    g = _importance(cfg, camera, None)
+    particles = g.sample(_rng(seed, 0), cfg.detection.particles)
+    return VisionState(seed=seed, frames=0, prev_image=None, prev_t=math.nan, prev_sensors=None,
+                       particles=particles, correction=g.correction(particles), attitude=np.eye(3))
+
+
+def _gray(frame: Frame, camera: PinholeCamera) -> NDArray[np.uint8]:
+    img = np.asarray(frame.image)
+    if img.dtype != np.uint8:
+        raise FrameFormatError(f"frame {frame.index}: pixels are {img.dtype}, expected 8-bit (uint8)")
+    if img.ndim == 3 and img.shape[2] == 3:
+        img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    elif img.ndim == 3 and img.shape[2] == 1:
+        img = img[:, :, 0]
+    if img.ndim != 2 or img.shape != (camera.height, camera.width):
+        size = "x".join(str(s) for s in img.shape[1::-1]) if img.ndim >= 2 else str(img.shape)
+        raise FrameFormatError(f"frame {frame.index}: image is {size}, the camera is configured "
+                               f"for {camera.width}x{camera.height}")
+    return np.ascontiguousarray(img)
+
+
+def _road(cfg: Config, sensors: SensorSample | None, attitude: FloatArray) -> RoadPlane:
+    pan = sensors.pan_rad if sensors is not None and math.isfinite(sensors.pan_rad) else 0.0
+    tilt = sensors.tilt_rad if sensors is not None and math.isfinite(sensors.tilt_rad) else 0.0
+    R_vc = vehicle_from_camera_rotation(cfg.mount.pitch_rad, pan, tilt) @ attitude
+    return RoadPlane(normal=R_vc.T @ np.array([0.0, 0.0, 1.0]), height_m=cfg.mount.z_m)
+
+
+def _importance(cfg: Config, camera: PinholeCamera, road: RoadPlane | None) -> ImportanceDensity:
+    if cfg.detection.importance == "road":
+        road = road or _road(cfg, None, np.eye(3))
+        return road_importance(camera.width, camera.height, horizon_row(road, camera.K))
+    return ImportanceDensity(camera.width, camera.height)
+
+
+def _unit(v: FloatArray) -> FloatArray:
+    n = float(np.linalg.norm(v))
+    return v / n if n > 0.0 else np.zeros(3)
+
+
+def _epipole(camera: PinholeCamera, t: FloatArray) -> tuple[float, float] | None:
+    if not np.any(t):
+        return None
+    e = epipole(camera, t)
+    return None if e is None else (float(e[0]), float(e[1]))
+
+
+def _first_frame(state: VisionState, image: NDArray[np.uint8], frame: Frame,
+                 sensors: SensorSample, cfg: Config) -> tuple[VisionState, EgoMotion, ParticleSet]:
+    zero = np.zeros(3)
+    standstill = not (math.isfinite(sensors.speed_m_s)
+                      and abs(sensors.speed_m_s) >= cfg.detection.standstill_speed_m_s)
+    ego = EgoMotion(rotation=zero, translation_dir=zero, epipole_px=None, prior_rotation=zero,
+                    prior_translation_dir=zero, prior_epipole_px=None, inliers=0, confident=False,
+                    standstill=standstill)
+    n = len(state.particles)
+    particles = ParticleSet(positions=state.particles.copy(), flow=np.zeros((n, 2)),
+                            weights=np.zeros(n), valid=np.zeros(n, dtype=bool))
+    new = dataclasses.replace(state, frames=state.frames + 1, prev_image=image, prev_t=frame.t,
+                              prev_sensors=sensors)
+    return new, ego, particles
+
+
+def _static_pool(image: NDArray[np.uint8], prob_map: ProbabilityMap | None, cfg: Config,
+                 rng: np.random.Generator) -> tuple[FloatArray, FloatArray]:
+    """Static-scene correspondences' start points (S, 2) and their ``1 - p(x)`` (S,)."""
+    n = cfg.refinement.static_points
+    h, w = image.shape
+    cell = max(8, int(math.sqrt(h * w / (2.0 * n))))
+    pos, _ = corner_candidates(image, cell)
+    p = prob_map.at(pos).astype(np.float64) if prob_map is not None else np.zeros(len(pos))
+    keep = 1.0 - np.clip(p, 0.0, 1.0)
+    if len(pos) > n:   # fig. 6 step 1: drawn with probability 1 - p(x)
+        idx = weighted_minimal_samples(rng, keep, 1, n)[0]
+        pos, keep = pos[idx], keep[idx]
+    return pos, keep
+
+
+def _refine(prior: PriorMotion, xp: FloatArray, xc: FloatArray, keep: FloatArray, cfg: Config,
+            camera: PinholeCamera, rng: np.random.Generator) -> tuple[FloatArray, int, bool]:
+    """Refined theta (5,) (polar angles kept from the prior at a standstill), inliers, confident."""
+    translating = not prior.standstill
+    sl = slice(0, 5) if translating else slice(2, 5)
+    problem = MapProblem(theta_bar=prior.theta[sl], sigma=prior.sigma[sl], K=camera.K,
+                         sigma_l_px=cfg.refinement.sigma_l_px, translating=translating)
+    result = refine_motion(problem, xp, xc, keep, cfg.refinement, rng)
+    theta = prior.theta.copy()
+    theta[sl] = result.theta
+    return theta, int(result.inliers.sum()), result.confident
+
+
+def perceive(state: VisionState, frame: Frame, sensors: SensorSample,
+             prob_map: ProbabilityMap | None, cfg: Config, camera: PinholeCamera
+             ) -> tuple[VisionState, EgoMotion, ParticleSet]:
+    """One frame of the vision core; see the module docstring.
+
+    Raises :class:`FrameFormatError` (before touching anything) for a frame whose
+    size or pixel type does not match ``camera``; the caller drops that frame and
+    the next good one continues from ``state``. Missing CAN, too few
+    correspondences and a covered camera do not raise: they give the prior,
+    ``confident`` False, and no detections.
+    """
+    image = _gray(frame, camera)
+    if state.prev_image is None or state.prev_sensors is None:
+        return _first_frame(state, image, frame, sensors, cfg)
+    rng = _rng(state.seed, state.frames)
+    prev_s = dataclasses.replace(state.prev_sensors, t=state.prev_t)
+    cur_s = dataclasses.replace(sensors, t=frame.t)
+    prior = prior_motion(cfg.mount, cfg.refinement, prev_s, cur_s,
+                         cfg.detection.standstill_speed_m_s)
+
+    # optical flow: both pools in one forward call, backward check of the static pool
+    static_start, keep = _static_pool(state.prev_image, prob_map, cfg, rng)
+    n = len(state.particles)
+    start = np.vstack([state.particles, static_start])
+    check = np.zeros(len(start), dtype=bool)
+    check[n:] = True
+    check[:n] = cfg.flow.fb_check_particles
+    tracks = track(state.prev_image, image, start, check, cfg.flow)
+    ideal_start = camera.undistort(start)
+    ideal_end = camera.undistort(tracks.end)
+
+    # refinement (section 3)
+    ok = tracks.valid[n:]
+    theta, inliers, refined = _refine(prior, ideal_start[n:][ok], ideal_end[n:][ok], keep[ok], cfg,
+                                      camera, rng)
+    R = euler_to_matrix(theta[2:])
+    t_dir = np.zeros(3) if prior.standstill else translation_from_theta(theta[None, :])[0]
+    length = float(np.linalg.norm(prior.t_m))
+    t_m = t_dir * length if prior.metric and not prior.standstill else None
+    attitude = prior.R @ state.attitude @ R.T
+    attitude = euler_to_matrix(ATTITUDE_LEAK * matrix_to_euler(attitude))
+    road = _road(cfg, sensors, attitude)
+
+    # detection (section 2)
+    valid = tracks.valid[:n]
+    motion = CameraMotion(R=R, t_dir=t_dir, t_m=t_m, standstill=prior.standstill, K=camera.K)
+    cues = motion_cues(ideal_start[:n], ideal_end[:n], motion, road, cfg.detection)
+    weights = np.where(valid, np.clip(combine(cues, cfg.detection.likelihood), 0.0, 1.0), 0.0)
+    end = tracks.end[:n]
+    g = _importance(cfg, camera, road)
+    particles, correction = next_particles(end, weights, valid, state.correction, g,
+                                           cfg.detection, rng)
+
+    prior_dir = _unit(prior.t_m)
+    ego = EgoMotion(rotation=theta[2:].copy(), translation_dir=t_dir, epipole_px=_epipole(camera, t_dir),
+                    prior_rotation=prior.theta[2:].copy(), prior_translation_dir=prior_dir,
+                    prior_epipole_px=_epipole(camera, prior_dir), inliers=inliers,
+                    confident=refined and not prior.wide, standstill=prior.standstill)
+    out = ParticleSet(positions=end.copy(), flow=end - state.particles, weights=weights,
+                      valid=valid.copy())
+    new = VisionState(seed=state.seed, frames=state.frames + 1, prev_image=image, prev_t=frame.t,
+                      prev_sensors=sensors, particles=particles, correction=correction,
+                      attitude=attitude)
+    return new, ego, out

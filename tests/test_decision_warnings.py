@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from appliance.config import Config, WarningConfig
 from appliance.decision.warnings import TrackThreat, WarningState, warning_step
@@ -79,12 +80,17 @@ def test_clears_after_hysteresis_and_hold_with_one_event(default_config: Config)
 
 def test_lowered_only_after_the_hold_time(default_config: Config) -> None:
     cfg = default_config.with_overrides({"warning": {"hold_s": 1.0}}).warning
-    frames = [(threat(1, 1.5),)] * 3 + [(threat(1, None),)] * 60
+    frames = [(threat(1, 1.5),)] * 3 + [(threat(1, 6.0),)] * 60
     levels, events = run(cfg, frames)
     assert [e.level for e in events] == [2, 0]
     issued, cleared = events
     assert cleared.t - issued.t >= 1.0 - 1e-9
     assert cleared.t - issued.t < 1.0 + 2.0 / FPS
+    # a TTC that becomes unknown (ground contact lost) holds until the contact is due
+    frames = [(threat(1, 1.5),)] * 3 + [(threat(1, None),)] * 60
+    _, events = run(cfg, frames)
+    assert [e.level for e in events] == [2, 0]
+    assert events[1].t == pytest.approx(2 / FPS + 1.5, abs=1.01 / FPS)
 
 
 def test_lost_track_keeps_the_warning_until_its_contact_is_due(default_config: Config) -> None:

@@ -82,6 +82,27 @@ def _box_of(points: FloatArray) -> Box:
     return (float(u0), float(v0), float(u1) + 1.0, float(v1) + 1.0)
 
 
+def merge_clusters(parts: list[Cluster]) -> Cluster:
+    """One cluster from several fragments of one object: members pooled, eqs. 19-20 redone
+    over the pooled correspondences, boxes joined."""
+    if len(parts) == 1:
+        return parts[0]
+    pos = np.vstack([c.positions for c in parts])
+    flows = np.vstack([c.flows for c in parts])
+    s = np.concatenate([c.s for c in parts])
+    w = np.concatenate([c.weights for c in parts])
+
+    def union(boxes: list[Box]) -> Box:
+        b = np.array(boxes)
+        return (float(b[:, 0].min()), float(b[:, 1].min()), float(b[:, 2].max()),
+                float(b[:, 3].max()))
+
+    return Cluster(bbox=union([c.bbox for c in parts]),
+                   region_bbox=union([c.region_bbox for c in parts]), n=len(pos),
+                   mean_flow=weighted_mean_motion(flows, s), mean_probability=mean_probability(s),
+                   positions=pos, flows=flows, s=s, weights=w)
+
+
 def find_clusters(prob: NDArray[np.float32], scale: int, particles: ParticleSet,
                   cfg: ClusteringConfig, image_size: tuple[int, int]) -> tuple[Cluster, ...]:
     """Regions of ``prob`` (map at 1/``scale``) above ``cfg.threshold``, as clusters.

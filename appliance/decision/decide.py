@@ -32,7 +32,7 @@ from appliance.decision.probability_map import empty_map, spatio_temporal_filter
 from appliance.decision.scale_ttc import ScaleState, measure_expansion, scale_predict, scale_ttc, scale_update
 from appliance.decision.threat import (
     bumper_ttc, constant_bearing_course, fuse, ground_ttc_std, object_radius, outline_gap,
-    predict_path,
+    predict_path, scale_lateral_miss,
 )
 from appliance.decision.tracking import ImageModel, ImageTrack, TrackerState, track_step
 from appliance.decision.warnings import TrackThreat, WarningState, warning_step
@@ -40,6 +40,7 @@ from appliance.messages import EgoMotion, ParticleSet, ProbabilityMap, SensorSam
 from appliance.vision.geometry import PinholeCamera
 
 BEARING_HISTORY = 10  # frames of bearing kept per track for its rate
+DEPTH_MEMORY_S = 3.0  # s, a depth carried on by the scale cue alone is forgotten after this
 
 
 @dataclass(frozen=True)
@@ -50,6 +51,8 @@ class TrackCues:
     ground_fresh: bool = False
     scale: ScaleState | None = None
     bearings: tuple[tuple[float, float], ...] = ()
+    depth: float | None = None  # m, camera to object along the vehicle x axis
+    depth_t: float = float("-inf")  # s, when the depth last came from the ground state
 
 
 @dataclass(frozen=True)
@@ -91,12 +94,18 @@ def init_decision_state(cfg: Config, camera: PinholeCamera) -> DecisionState:
     )
 
 
-def _touches_border(box: tuple[float, float, float, float], camera: PinholeCamera,
-                    margin: int) -> bool:
-    """Left, right or bottom edge within ``margin`` px of the image border (the top does not
-    hide the ground contact)."""
-    u0, _, u1, v1 = box
-    return u0 <= margin or u1 >= camera.width - margin or v1 >= camera.height - margin
+def _touches_border(c: Cluster, camera: PinholeCamera, margin: int, member_weight: float) -> bool:
+    """Left, right or bottom edge of the cluster's box within ``margin`` px plus the particle
+    spacing of the image border (the top does not hide the ground contact).
+
+    The box spans sampled particles, so its edge is only known to about their spacing
+    ``sqrt(box area / particles)``: an object cut by the border often has no particle
+    in its last rows.
+    """
+    u0, v0, u1, v1 = c.bbox
+    n = max(int(np.count_nonzero(c.weights >= member_weight)), 1)
+    m = margin + math.sqrt(max((u1 - u0) * (v1 - v0), 0.0) / n)
+    return u0 <= m or u1 >= camera.width - m or v1 >= camera.height - m
 
 
 def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
@@ -111,7 +120,8 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
     fresh = False
     c = track.cluster
     if c is not None:
-        if not _touches_border(c.bbox, camera, cfg.ground.border_margin_px):
+        if not _touches_border(c, camera, cfg.ground.border_margin_px,
+                               cfg.clustering.member_weight):
             u0, _, u1, v1 = c.bbox
             contact = ground_contact(camera, (0.5 * (u0 + u1), v1 - 0.5), pose, cfg.ground)
             if contact is not None:
@@ -124,8 +134,19 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
             s = scale_update(s, m, dt)
     if g is not None and t - g.t_update > cfg.ground.coast_s:
         g = None
+    # depth: from the 3-D state while there is one, then carried on by the expansion rate
+    # (dZ/dt = -k Z), so the scale TTC can still be referred to the bumper
+    depth, depth_t = (cues.depth, cues.depth_t) if cues else (None, float("-inf"))
+    if g is not None:
+        depth, depth_t = float(g.x[0] - cfg.mount.x_m), t
+    elif depth is not None:
+        if s is not None and s.n > 0:
+            depth *= math.exp(-s.k * dt)
+        if t - depth_t > DEPTH_MEMORY_S:
+            depth = None
     hist = (cues.bearings if cues else ()) + ((t, bearing(camera, track.position, pose)),)
-    return TrackCues(ground=g, ground_fresh=fresh, scale=s, bearings=hist[-BEARING_HISTORY:])
+    return TrackCues(ground=g, ground_fresh=fresh, scale=s, bearings=hist[-BEARING_HISTORY:],
+                     depth=depth, depth_t=depth_t)
 
 
 def _bearing_rate(hist: tuple[tuple[float, float], ...]) -> float | None:
@@ -164,21 +185,28 @@ def assess(track: ImageTrack, cues: TrackCues, sensors: SensorSample, cfg: Confi
         if ttc_g is not None:
             ground_est = (ttc_g, ground_ttc_std(pos, g.P, ttc_g, speed, vel))
     scale = scale_ttc(cues.scale, cfg.ground.scale_ttc_min_frames)
-    scale_est = bumper_ttc(scale, depth, mount) if scale is not None else None
+    scale_est = bumper_ttc(scale, depth if depth is not None else cues.depth, mount) \
+        if scale is not None else None
     ttc: float | None = None
     if g is not None:
         if ground_est is not None:
             fused = fuse(ground_est, scale_est)
             ttc = fused[0] if fused is not None else None
-    elif scale_est is not None and brg is not None:
+    elif scale is not None and scale_est is not None and brg is not None:
         rate = _bearing_rate(cues.bearings)
-        if rate is not None:
+        if rate is not None and cues.depth is not None:
+            miss = scale_lateral_miss(cues.depth, brg, rate, 1.0 / scale[0], scale_est[0], mount)
+            radius = object_radius(track.size[0], cues.depth, camera.fx)
+            half = 0.5 * mount.vehicle_width_m + w.corridor_margin_m + radius
+            on_course = abs(miss) <= half
+            on_wide = abs(miss) <= half + w.corridor_hysteresis_m
+        elif rate is not None:
             on_course = constant_bearing_course(brg, rate, scale_est[0], mount, w.corridor_margin_m,
                                                 w.bearing_tolerance_rad)
             on_wide = on_course or constant_bearing_course(
                 brg, rate, scale_est[0], mount, w.corridor_margin_m + w.corridor_hysteresis_m,
                 w.bearing_tolerance_rad)
-            ttc = scale_est[0] if on_wide else None
+        ttc = scale_est[0] if on_wide else None
     report = TrackReport(
         id=int(track.id) if track.id is not None else -1,
         bbox=tuple(round(v, 1) for v in track.bbox),  # type: ignore[arg-type]

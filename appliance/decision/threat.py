@@ -21,10 +21,12 @@ image border, the contact point is beyond ``max_range_m`` or above the horizon):
 2. no ground contact this frame but a 3-D state updated within ``coast_s``
    -> the coasted state decides the corridor, and the fusion of 1 applies with
    the coasted state's grown variance, so the scale cue takes over smoothly;
-3. no usable 3-D state -> scale cue alone, with the classic monocular test for
-   the corridor: constant bearing (predicted bearing change until contact below
-   ``bearing_tolerance_rad``) and a bearing inside the corridor as seen at the
-   bumper;
+3. no usable 3-D state -> scale cue alone. If the track had a 3-D state in the
+   last few seconds, its depth is carried on by the expansion rate (dZ/dt = -k Z)
+   and gives the lateral miss from bearing and bearing rate; otherwise the
+   classic monocular test: constant bearing (predicted bearing change until
+   contact below ``bearing_tolerance_rad``) and a bearing inside the corridor as
+   seen at the bumper;
 4. neither -> TTC and distance null (honestly unknown), no warning from this track.
 
 At standstill nothing changes: back-projection needs no ego motion and the
@@ -123,6 +125,17 @@ def constant_bearing_course(bearing: float, bearing_rate: float, ttc: float,
     d = max(mount.vehicle_front_m - mount.x_m, 0.5)
     half = math.atan2(0.5 * mount.vehicle_width_m + margin, d)
     return abs(bearing_rate * ttc) <= tolerance and abs(bearing) <= half
+
+
+def scale_lateral_miss(depth: float, bearing: float, bearing_rate: float, k: float,
+                       ttc: float, mount: MountConfig) -> float:
+    """Lateral position (m, vehicle y) at contact of an object without a ground contact but
+    with a depth Z carried on by the scale cue: y = y_cam + Z tan(b), and its rate
+    dy/dt = dZ/dt tan(b) + Z db/dt / cos^2(b) with dZ/dt = -k Z (k the expansion rate, 1/s)."""
+    tb = math.tan(bearing)
+    y = mount.y_m + depth * tb
+    ydot = -k * depth * tb + depth * bearing_rate / math.cos(bearing) ** 2
+    return y + ydot * ttc
 
 
 def object_radius(box_width_px: float, range_m: float, fx: float) -> float:

@@ -18,6 +18,10 @@ The list of filters is maintained by the paper's five rules, in order:
 4. a new filter is born for every region no filter took;
 5. of two filters closer than ``merge_px`` the younger is deleted.
 
+Before rule 2, regions whose centres fall inside a confirmed track's predicted
+box are pooled into one region (``gather_fragments``): a near object breaks into
+pieces that the paper's rules would otherwise turn into new filters.
+
 A filter that survived its first ``confirm_frames`` steps is *confirmed* and
 gets the next public id (stable for its life; ids of tentative filters that
 die are never seen). The maths uses filterpy's ``predict``/``update`` free
@@ -35,7 +39,7 @@ from filterpy.kalman import predict, update
 from numpy.typing import NDArray
 
 from appliance.config import TrackingConfig
-from appliance.decision.clustering import Cluster
+from appliance.decision.clustering import Cluster, merge_clusters
 
 FloatArray = NDArray[np.float64]
 
@@ -155,12 +159,39 @@ def _update(track: ImageTrack, cluster: Cluster, model: ImageModel, alpha: float
                    probability=cluster.mean_probability)
 
 
+def gather_fragments(clusters: tuple[Cluster, ...], tracks: list[ImageTrack]
+                     ) -> tuple[Cluster, ...]:
+    """Regions whose centres lie inside one confirmed track's predicted box are one object.
+
+    A near object spans many pixels with few particles, and its blurred
+    probability can break into pieces; without this each piece would start a new
+    filter (rule 4) whose "ground contact" is the middle of the object. Oldest
+    track first; a region joins at most one track.
+    """
+    if len(clusters) < 2:
+        return clusters
+    taken = np.zeros(len(clusters), dtype=bool)
+    centers = np.array([c.center for c in clusters])
+    merged: list[Cluster] = []
+    for t in sorted(tracks, key=lambda tr: tr.uid):
+        if not t.confirmed:
+            continue
+        u0, v0, u1, v1 = t.bbox
+        inside = ((centers[:, 0] >= u0) & (centers[:, 0] <= u1) & (centers[:, 1] >= v0)
+                  & (centers[:, 1] <= v1) & ~taken)
+        if np.count_nonzero(inside) >= 2:
+            merged.append(merge_clusters([clusters[j] for j in np.flatnonzero(inside)]))
+            taken |= inside
+    return tuple(merged) + tuple(c for j, c in enumerate(clusters) if not taken[j])
+
+
 def track_step(state: TrackerState, clusters: tuple[Cluster, ...], cfg: TrackingConfig,
                model: ImageModel | None = None) -> TrackerState:
     """One cycle of the five rules; returns the new list (oldest first)."""
     model = model or ImageModel.from_config(cfg)
     # rule 1: predict every filter
     tracks = [_predict(t, model) for t in state.tracks]
+    clusters = gather_fragments(clusters, tracks)
     centers = np.array([c.center for c in clusters]).reshape(-1, 2)
     assigned = np.zeros(len(clusters), dtype=bool)
     # rule 2: closest region within the gate updates the filter

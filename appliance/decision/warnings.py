@@ -12,10 +12,10 @@ predicted path meets the ego corridor and with what TTC. From that:
   ``hysteresis_s`` and the path meets the corridor widened by
   ``corridor_hysteresis_m``: a TTC oscillating around a threshold does not flicker.
 * **Hold.** An issued level is not lowered within ``hold_s`` of being issued. If
-  the warned track is lost (it left the image or went under the bonnet just
-  before contact), the level is held until its last predicted contact time has
-  passed (at least ``hold_s``): a warning is never cleared because the object
-  came too close to see.
+  the warned track is lost, or its TTC becomes unknown (it left the image, went
+  under the bonnet, lost its ground contact just before contact), the level is
+  held until its last predicted contact time has passed (at least ``hold_s``):
+  a warning is never cleared because the object came too close to see.
 
 The issued level is the highest over all tracks (ties: the track already
 warned about, then the smallest TTC). A state change -- level or warned track --
@@ -105,16 +105,22 @@ def warning_step(state: WarningState, threats: tuple[TrackThreat, ...], t: float
     # hold: never lower an issued level within hold_s, nor while a lost track's contact is due
     if level < state.level:
         held = t < state.since + cfg.hold_s
-        if state.track is not None and state.track not in present and state.last is not None:
+        warned = present.get(state.track) if state.track is not None else None
+        unknown = warned is None or warned.ttc is None
+        if state.track is not None and unknown and state.last is not None:
             due = state.last_seen + max(cfg.hold_s, state.last.ttc_s or 0.0)
             held = held or t < due
         if held:
             level, new_track = state.level, state.track
-            if new_track in present:
-                report = present[new_track].report
+            if warned is not None and not unknown:
+                report = warned.report
             else:
                 report = _extrapolated(state.last, t - state.last_seen)
-    seen = new_track is not None and new_track in present
+                if report is not None and warned is not None:
+                    report = replace(report, bbox=warned.report.bbox,
+                                     bearing_rad=warned.report.bearing_rad)
+    seen = (new_track is not None and new_track in present
+            and present[new_track].ttc is not None)
     events: tuple[WarningEvent, ...] = ()
     if level != state.level or (level > 0 and new_track != state.track):
         since = t

@@ -109,6 +109,7 @@ class FlowConfig:
     epsilon: float = _p(0.0, lo_open=True)
     fb_threshold_px: float = _p(0.0, lo_open=True)
     fb_check_particles: bool = _p()
+    min_eigenvalue: float = _p(0.0)
 
 
 @dataclass(frozen=True)

@@ -40,6 +40,7 @@ def lk_params(cfg: FlowConfig) -> dict[str, object]:
         "maxLevel": cfg.pyramid_levels,
         "criteria": (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, cfg.max_iterations,
                      cfg.epsilon),
+        "minEigThreshold": cfg.min_eigenvalue,
     }
 
 

@@ -134,7 +134,7 @@ def _first_frame(state: VisionState, image: NDArray[np.uint8], frame: Frame,
     return new, ego, particles
 
 
-def _static_pool(image: NDArray[np.uint8], prob_map: ProbabilityMap | None, cfg: Config,
+def static_pool(image: NDArray[np.uint8], prob_map: ProbabilityMap | None, cfg: Config,
                  rng: np.random.Generator) -> tuple[FloatArray, FloatArray]:
     """Static-scene correspondences' start points (S, 2) and their ``1 - p(x)`` (S,)."""
     n = cfg.refinement.static_points
@@ -183,7 +183,7 @@ def perceive(state: VisionState, frame: Frame, sensors: SensorSample,
                          cfg.detection.standstill_speed_m_s)
 
     # optical flow: both pools in one forward call, backward check of the static pool
-    static_start, keep = _static_pool(state.prev_image, prob_map, cfg, rng)
+    static_start, keep = static_pool(state.prev_image, prob_map, cfg, rng)
     n = len(state.particles)
     start = np.vstack([state.particles, static_start])
     check = np.zeros(len(start), dtype=bool)

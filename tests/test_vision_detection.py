@@ -1,0 +1,217 @@
+"""Section 2: likelihood cues (eqs. 5-6, flow length, standstill) and the particle filter (figs. 3-4)."""
+
+from __future__ import annotations
+
+import math
+
+import filterpy.monte_carlo.resampling as fp_resampling
+import numpy as np
+import pytest
+from filterpy.monte_carlo import systematic_resample as filterpy_systematic
+
+from appliance.config import Config
+from appliance.vision import geometry as g
+from appliance.vision.detection import (
+    ImportanceDensity,
+    next_particles,
+    road_importance,
+    systematic_resample,
+)
+from appliance.vision.likelihood import (
+    CameraMotion,
+    Cues,
+    RoadPlane,
+    combine,
+    direction_cue,
+    horizon_row,
+    magnitude_cue,
+    motion_cues,
+    road_depth,
+    standstill_cue,
+)
+
+CAM = g.PinholeCamera(640, 480, 700.0, 700.0, 319.5, 239.5)
+K = CAM.K
+HEIGHT = 1.3
+ROAD = RoadPlane(normal=np.array([0.0, -1.0, 0.0]), height_m=HEIGHT)   # level camera
+FORWARD = np.array([0.0, 0.0, -1.0])
+
+
+def forward_motion(step_m: float = 0.4) -> CameraMotion:
+    return CameraMotion(R=np.eye(3), t_dir=FORWARD, t_m=FORWARD * step_m, standstill=False, K=K)
+
+
+def test_eq6_is_lowest_at_alpha_zero_rises_with_alpha_and_stays_in_0_1(default_config: Config) -> None:
+    cfg = default_config.detection
+    alphas = np.linspace(0.0, math.pi, 50)
+    static_dir = np.tile([[1.0, 0.0]], (50, 1))
+    d_e = np.full(50, 200.0)
+    for length in (0.6, 2.0, 20.0):          # sigma_l from ~1 rad down to ~0.06 rad
+        flow = length * np.column_stack([np.cos(alphas), np.sin(alphas)])
+        p = direction_cue(flow, static_dir, d_e, cfg)
+        assert p[0] == pytest.approx(0.0, abs=1e-12)
+        rising = np.diff(p)
+        assert np.all(rising >= 0.0)
+        assert np.all(rising[p[1:] < 1.0 - 1e-9] > 0.0)   # strictly, until it saturates at 1
+        assert np.all((p >= 0.0) & (p <= 1.0))
+    # eq. 6 as printed would be negative here: sigma_l < 1/sqrt(2 pi)
+    sigma_l = math.asin(cfg.sigma_e_px / 200.0) + math.asin(cfg.sigma_p_px / 20.0)
+    assert sigma_l < 1.0 / math.sqrt(2.0 * math.pi)
+    assert 1.0 - 1.0 / (math.sqrt(2.0 * math.pi) * sigma_l) < 0.0
+
+
+def test_direction_is_undefined_near_the_epipole_and_for_near_zero_flow(default_config: Config) -> None:
+    cfg = default_config.detection
+    backwards = np.array([[-5.0, 0.0], [-0.05, 0.0], [0.0, 0.0], [-5.0, 0.0]])
+    static_dir = np.tile([[1.0, 0.0]], (4, 1))
+    d_e = np.array([cfg.epipole_radius_px / 2, 200.0, 200.0, 200.0])
+    p = direction_cue(backwards, static_dir, d_e, cfg)
+    np.testing.assert_allclose(p[:3], 0.0)   # at the epipole, a 0.05 px flow, a zero flow
+    assert p[3] > 0.9                        # the same backwards flow far from the epipole
+
+
+def test_road_depth_and_horizon_of_a_level_camera() -> None:
+    uv = np.array([[319.5, 239.5 + 70.0], [100.0, 239.5 + 35.0], [319.5, 200.0]])
+    Z = road_depth(ROAD, K, uv)
+    np.testing.assert_allclose(Z[:2], [HEIGHT * 10.0, HEIGHT * 20.0])
+    assert np.isnan(Z[2])                       # above the horizon: no road
+    assert horizon_row(ROAD, K) == pytest.approx(239.5)
+    pitched = RoadPlane(normal=g.rot_x(-0.05).T @ np.array([0.0, -1.0, 0.0]), height_m=HEIGHT)
+    # a camera pitched down (rotation about x by -0.05) sees the horizon higher
+    assert horizon_row(pitched, K) == pytest.approx(239.5 - 700.0 * math.tan(0.05), abs=1e-6)
+
+
+def road_correspondence(uv_cur: np.ndarray, step_m: float) -> np.ndarray:
+    """Previous positions of the road points seen at uv_cur after moving step_m forward."""
+    Z = road_depth(ROAD, K, uv_cur)
+    X = np.column_stack([(uv_cur[:, 0] - K[0, 2]) / K[0, 0] * Z,
+                         (uv_cur[:, 1] - K[1, 2]) / K[1, 1] * Z, Z])
+    return CAM.project(X + np.array([0.0, 0.0, step_m]))
+
+
+def test_magnitude_cue_flags_flow_much_shorter_than_the_road_allows(default_config: Config) -> None:
+    cfg = default_config.detection
+    uv = np.array([[420.0, 300.0], [420.0, 300.0], [420.0, 300.0], [420.0, 150.0]])
+    x_prev = road_correspondence(uv[:3], 0.4)
+    static_flow = uv[0] - x_prev[0]
+    assert np.linalg.norm(static_flow) > 1.5
+    flow_t = np.vstack([static_flow,              # a road point
+                        1.5 * static_flow,        # closer than the road: a static obstacle
+                        0.05 * static_flow,       # nearly no flow: on a collision course
+                        [0.0, 0.0]])              # above the horizon
+    p = magnitude_cue(flow_t, uv, forward_motion(), ROAD, cfg)
+    assert p[0] < 0.05 and p[1] == 0.0
+    assert p[2] > 0.8
+    assert p[3] == 0.0
+    unknown = CameraMotion(np.eye(3), FORWARD, None, False, K)   # CAN lost: no metric step
+    np.testing.assert_array_equal(magnitude_cue(flow_t, uv, unknown, ROAD, cfg), 0.0)
+
+
+def test_standstill_cue_is_half_at_the_configured_residual(default_config: Config) -> None:
+    cfg = default_config.detection
+    r0 = cfg.standstill_residual_px
+    p = standstill_cue(np.array([[0.0, 0.0], [r0, 0.0], [0.0, 4.0 * r0]]), cfg)
+    np.testing.assert_allclose(p, [0.0, 0.5, 1.0 - 2.0**-16])
+
+
+def test_motion_cues_of_a_static_road_and_a_crossing_object(default_config: Config) -> None:
+    cfg = default_config.detection
+    uv = np.array([[500.0, 320.0], [150.0, 300.0], [500.0, 320.0]])
+    x_prev = road_correspondence(uv, 0.4)
+    x_prev[2] = uv[2] + np.array([3.0, 0.0])      # moved 3 px towards the epipole: crossing
+    cues = motion_cues(x_prev, uv, forward_motion(), ROAD, cfg)
+    assert cues.direction is not None and cues.magnitude is not None
+    w = combine(cues, "combined")
+    assert w[0] < 0.05 and w[1] < 0.05 and w[2] > 0.9
+    standing = CameraMotion(np.eye(3), np.zeros(3), None, True, K)
+    still = motion_cues(x_prev, uv, standing, ROAD, cfg)
+    assert still.direction is None and still.standstill is not None
+    np.testing.assert_array_equal(combine(still, "direction"), still.standstill)
+
+
+def test_combine_modes() -> None:
+    cues = Cues(direction=np.array([0.5, 0.0]), magnitude=np.array([0.5, 1.0]), standstill=None)
+    np.testing.assert_allclose(combine(cues, "direction"), [0.5, 0.0])
+    np.testing.assert_allclose(combine(cues, "magnitude"), [0.5, 1.0])
+    np.testing.assert_allclose(combine(cues, "combined"), [0.75, 1.0])
+    with pytest.raises(ValueError):
+        combine(cues, "nonsense")
+
+
+@pytest.mark.parametrize("offset", [0.0, 0.37, 0.999])
+def test_systematic_resample_matches_filterpy(monkeypatch: pytest.MonkeyPatch, offset: float) -> None:
+    w = np.random.default_rng(1).random(40)
+    w /= w.sum()
+    monkeypatch.setattr(fp_resampling, "random", lambda *a: offset)
+    np.testing.assert_array_equal(systematic_resample(w, 40, offset), filterpy_systematic(w))
+
+
+def test_importance_correction_undoes_the_road_bias() -> None:
+    g_road = road_importance(640, 480, 240.0)
+    assert g_road.band_top is not None
+    rng = np.random.default_rng(0)
+    pos = g_road.sample(rng, 20000)
+    in_band = pos[:, 1] >= g_road.band_top
+    assert in_band.mean() > 0.8              # biased towards the road band
+    # E_g[u / g] = 1: the corrected samples represent the uniform prior (eq. 4)
+    assert g_road.correction(pos).mean() == pytest.approx(1.0, abs=0.02)
+    np.testing.assert_array_equal(ImportanceDensity(640, 480).correction(pos[:5]), 1.0)
+    assert road_importance(640, 480, None).band_top is None
+
+
+def test_with_no_valid_particle_all_come_from_g(default_config: Config) -> None:
+    cfg = default_config.detection
+    n = cfg.particles
+    x = np.zeros((n, 2))
+    out, corr = next_particles(x, np.ones(n), np.zeros(n, bool), np.ones(n),
+                               ImportanceDensity(640, 480), cfg, np.random.default_rng(0))
+    assert out.shape == (n, 2) and np.all(corr == 1.0)
+    assert out[:, 0].std() > 100.0           # spread over the image, not stuck at (0, 0)
+
+
+def static_flow_field(uv: np.ndarray, step_m: float) -> np.ndarray:
+    """Previous positions of static points seen at uv: road below the horizon, a wall at 40 m above."""
+    Z = road_depth(ROAD, K, uv)
+    Z = np.where(np.isfinite(Z) & (Z < 40.0), Z, 40.0)
+    X = np.column_stack([(uv[:, 0] - K[0, 2]) / K[0, 0] * Z, (uv[:, 1] - K[1, 2]) / K[1, 1] * Z, Z])
+    return CAM.project(X + np.array([0.0, 0.0, step_m]))
+
+
+BLOB = (400.0, 200.0, 460.0, 290.0)   # u0, v0, u1, v1 px: an object standing on the road ~17 m ahead
+
+
+def in_blob(uv: np.ndarray) -> np.ndarray:
+    return (uv[:, 0] >= BLOB[0]) & (uv[:, 0] <= BLOB[2]) & (uv[:, 1] >= BLOB[1]) & (uv[:, 1] <= BLOB[3])
+
+
+@pytest.mark.parametrize(("mode", "blob_flow"), [
+    ("direction", np.array([-2.5, 0.0])),     # crossing towards the centre of the image
+    ("magnitude", np.array([0.1, 0.05])),      # constant bearing: it only grows a little
+    ("combined", np.array([0.1, 0.05])),
+])
+def test_particles_concentrate_on_a_moving_blob_within_a_few_frames(
+        default_config: Config, mode: str, blob_flow: np.ndarray) -> None:
+    cfg = default_config.with_overrides({"detection": {"likelihood": mode}}).detection
+    rng = np.random.default_rng(4)
+    gd = ImportanceDensity(640, 480)
+    particles = gd.sample(rng, cfg.particles)
+    correction = np.ones(cfg.particles)
+    motion = forward_motion(0.4)
+    blob_share = (BLOB[2] - BLOB[0]) * (BLOB[3] - BLOB[1]) / (640 * 480)
+    shares = []
+    for _ in range(5):
+        # the scene and the blob stay put in this test: measure the flow ending at the particles
+        x_cur = particles
+        x_prev = static_flow_field(x_cur, 0.4)
+        inside = in_blob(x_cur)
+        x_prev[inside] = x_cur[inside] - blob_flow
+        x_prev += rng.normal(0.0, 0.05, x_prev.shape)          # LK noise
+        w = combine(motion_cues(x_prev, x_cur, motion, ROAD, cfg), cfg.likelihood)
+        high = w > 0.5
+        shares.append(in_blob(x_cur[high]).mean() if high.any() else 0.0)
+        valid = np.ones(len(x_cur), bool)
+        particles, correction = next_particles(x_cur, w, valid, correction, gd, cfg, rng)
+    final_share = in_blob(particles).mean()
+    assert blob_share < 0.02
+    assert final_share > 0.5, (mode, final_share)
+    assert shares[-1] > 0.8                  # high-weight particles are on the blob

@@ -45,6 +45,8 @@ class CameraConfig:
     reopen_min_s: float = _p(0.0, lo_open=True)
     reopen_max_s: float = _p(0.0, lo_open=True)
     late_factor: float = _p(1.0)
+    stale_s: float = _p(0.0, lo_open=True)
+    timestamps: str = _p(choices=("auto", "retrieval"))
 
 
 @dataclass(frozen=True)
@@ -82,6 +84,8 @@ class HmiCanConfig:
     status_id: int = _p(0, 0x7FF)
     period_s: float = _p(0.0, 10.0, lo_open=True)
     tx_queue: int = _p(1, 100000)
+    reopen_min_s: float = _p(0.0, lo_open=True)
+    reopen_max_s: float = _p(0.0, lo_open=True)
 
 
 @dataclass(frozen=True)
@@ -96,6 +100,7 @@ class PtuConfig:
     poll_hz: float = _p(0.0, 200.0, lo_open=True)
     timeout_s: float = _p(0.0, 10.0, lo_open=True)
     retries: int = _p(0, 10)
+    fault_after: int = _p(1, 1000)
     speed_rad_s: float = _p(0.0, 10.0, lo_open=True)
     reopen_min_s: float = _p(0.0, lo_open=True)
     reopen_max_s: float = _p(0.0, lo_open=True)
@@ -391,7 +396,7 @@ def _check_cross(cfg: Config, origin: dict[str, dict[str, str]]) -> None:
     if cfg.hmi_can.warning_id == cfg.hmi_can.status_id:
         raise ConfigError(src("hmi_can", "status_id"), "hmi_can.status_id",
                           "must differ from hmi_can.warning_id")
-    for section in ("camera", "vehicle_can", "ptu"):
+    for section in ("camera", "vehicle_can", "hmi_can", "ptu"):
         sec = getattr(cfg, section)
         if sec.reopen_max_s < sec.reopen_min_s:
             raise ConfigError(src(section, "reopen_max_s"), f"{section}.reopen_max_s",

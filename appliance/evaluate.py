@@ -1,0 +1,100 @@
+"""``collision-warning evaluate RECORDING RUN_DIR``: score a run against the recording's truth.
+
+Reads ``truth.json`` (through :class:`~appliance.recording.Recording`) and the
+run's ``tracks.jsonl`` and ``warnings.jsonl`` (spec formats); prints a table;
+writes ``evaluation.json`` and ``timeline.png`` into RUN_DIR. The definitions of
+every score are in :mod:`appliance.evaluation.metrics`. A recording without
+truth or a run directory without outputs is a usage error (exit 2, one line).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any, TextIO
+
+from appliance.config import load_config
+from appliance.errors import UsageError
+from appliance.evaluation.metrics import evaluate
+from appliance.evaluation.plot import plot_timeline
+from appliance.evaluation.runfiles import parse_truth, read_tracks, read_warnings
+from appliance.recording import Recording
+
+
+def evaluate_run(recording: str | Path, run_dir: str | Path, plot: bool = True) -> dict[str, Any]:
+    """Score ``run_dir`` against ``recording``; writes evaluation.json (and timeline.png)."""
+    rec = Recording(recording, load_config())
+    truth_raw = rec.truth()
+    if truth_raw is None:
+        raise UsageError(f"{rec.path}: no truth.json; only simulated recordings can be evaluated")
+    truth = parse_truth(truth_raw, str(rec.path / "truth.json"))
+    run = Path(run_dir)
+    if not run.is_dir():
+        raise UsageError(f"{run}: run directory not found")
+    tracks = read_tracks(run / "tracks.jsonl")
+    warnings = read_warnings(run / "warnings.jsonl")
+    cam = rec.meta.camera
+    result = evaluate(truth, tracks, warnings, rec.frame_times, (cam.width, cam.height),
+                      rec.meta.mount)
+    result["recording"] = str(rec.path)
+    result["run_dir"] = str(run)
+    (run / "evaluation.json").write_text(json.dumps(result, indent=2) + "\n")
+    if plot:
+        plot_timeline(run / "timeline.png", truth, tracks, warnings, rec.frame_times,
+                      rec.meta.mount, result)
+    return result
+
+
+def _fmt(v: Any, spec: str = ".2f") -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, bool):
+        return "yes" if v else "NO"
+    return format(v, spec) if isinstance(v, float) else str(v)
+
+
+TABLE_COLUMNS = (
+    ("scenario", "scenario", "s"),
+    ("collision", "coll", ""),
+    ("worst_detection_delay_frames", "detect(fr)", ""),
+    ("tracked", "tracked", ".0%"),
+    ("lead_time_s", "lead(s)", ".2f"),
+    ("false_level2", "falseL2", ""),
+    ("level1_per_min", "L1/min", ".2f"),
+    ("ttc_rel_error_median", "TTCerr", ".0%"),
+    ("distance_rel_error_median", "distErr", ".0%"),
+    ("pass", "targets", ""),
+)
+
+
+def table_row(r: dict[str, Any]) -> dict[str, str]:
+    fractions = [o["tracked_fraction"] for o in r["objects"] if o["tracked_fraction"] is not None]
+    vals = dict(r)
+    vals["tracked"] = min(fractions) if fractions else None
+    failed = [k for k, ok in r["targets"].items() if ok is False]
+    vals["pass"] = "ok" if not failed else "FAIL " + ",".join(failed)
+    return {head: _fmt(vals.get(key), spec) for key, head, spec in TABLE_COLUMNS}
+
+
+def print_table(rows: list[dict[str, str]], out: TextIO | None = None) -> None:
+    out = out or sys.stdout
+    heads = [h for _, h, _ in TABLE_COLUMNS]
+    widths = [max(len(h), *(len(r[h]) for r in rows)) if rows else len(h) for h in heads]
+    print("  ".join(h.ljust(w) for h, w in zip(heads, widths)), file=out)
+    print("  ".join("-" * w for w in widths), file=out)
+    for r in rows:
+        print("  ".join(r[h].ljust(w) for h, w in zip(heads, widths)), file=out)
+
+
+def main(args: argparse.Namespace) -> int:
+    result = evaluate_run(args.recording, args.run_dir)
+    print_table([table_row(result)])
+    for o in result["objects"]:
+        print(f"  object {o['id']} ({o['class']}): first eligible frame "
+              f"{_fmt(o['first_eligible_frame'])}, first detection {_fmt(o['first_detection_frame'])}, "
+              f"delay {_fmt(o['detection_delay_frames'])} frames, tracked "
+              f"{_fmt(o['tracked_fraction'], '.0%')}, tracks {o['track_ids']}")
+    print(f"wrote {Path(args.run_dir) / 'evaluation.json'} and {Path(args.run_dir) / 'timeline.png'}")
+    return 0

@@ -1,0 +1,1 @@
+"""Scoring a run against a simulated recording's truth (``collision-warning evaluate``)."""

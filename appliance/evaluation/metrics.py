@@ -1,0 +1,270 @@
+"""Scores of one run against its recording's truth (issue 6, item 6).
+
+Definitions (where the issue is silent, what a validation engineer expects):
+
+* **Match:** a confirmed track matches a truth object in a frame when their boxes
+  have IoU >= 0.3 (the truth box clipped to the image).
+* **Eligible frames** of a mover: its truth box is at least 15 px tall inside the
+  image and at least half of it is visible.
+* **First detection:** the first frame with a match; the delay is counted in
+  frames from the first eligible frame (target: <= 10).
+* **Tracked fraction:** eligible frames with a match / eligible frames.
+* **Attribution:** a track id belongs to the object it matched in most frames
+  (at least 3); a track that never matched a mover is a track on a static object
+  or on nothing.
+* **Colliding object:** the mover whose truth position is closest to the ego
+  outline at ``collision_t``.
+* **Lead time:** ``collision_t`` minus the first level-2 event on the colliding
+  object (its track attributed to it, or its box matching it) at or before
+  ``collision_t``; null when there was none (a missed warning).
+* **False level-2 warnings:** level-2 onsets (a level-2 event after a lower level,
+  or for a new track) in a no-collision scenario, or, in a collision scenario,
+  not on a moving object.
+* **Level-1 per minute:** onsets from level 0 to level >= 1 per minute of recording.
+* **TTC / distance error:** medians over the frames of the last 3 s before
+  ``collision_t`` of |estimate - truth| / truth for the track of the colliding
+  object; the truth TTC is ``collision_t - t``, the truth distance is the gap
+  between the ego outline and the object's ``pos_vehicle`` (the same definition
+  the appliance reports). Frames closer than 0.2 s / 0.5 m are left out (the
+  ratio is meaningless there); ``*_coverage`` is the fraction of the window's
+  frames that had an estimate.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter, defaultdict
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from appliance.config import MountConfig
+from appliance.decision.threat import outline_gap
+from appliance.evaluation.runfiles import Box, TrackRow, Truth, TruthObject, WarningRow
+
+IOU_MATCH = 0.3
+MIN_HEIGHT_PX = 15.0
+MIN_VISIBLE = 0.5
+DETECT_WITHIN_FRAMES = 10
+LAST_WINDOW_S = 3.0
+MIN_ATTRIBUTED_FRAMES = 3
+
+TARGETS = {
+    "lead_time_s": 1.5,
+    "detect_frames": DETECT_WITHIN_FRAMES,
+    "level1_per_min": 1.0,
+    "ttc_rel_error": 0.20,
+    "distance_rel_error": 0.15,
+}
+
+
+def iou(a: Box | NDArray[np.float64], b: Box | NDArray[np.float64]) -> float:
+    """Intersection over union of two (u0, v0, u1, v1) boxes."""
+    iw = min(a[2], b[2]) - max(a[0], b[0])
+    ih = min(a[3], b[3]) - max(a[1], b[1])
+    if iw <= 0 or ih <= 0:
+        return 0.0
+    inter = iw * ih
+    union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter
+    return float(inter / union) if union > 0 else 0.0
+
+
+def clip_box(b: NDArray[np.float64], width: int, height: int) -> NDArray[np.float64]:
+    return np.array([max(b[0], 0.0), max(b[1], 0.0), min(b[2], float(width)), min(b[3], float(height))])
+
+
+def _onsets(warnings: list[WarningRow]) -> tuple[list[WarningRow], list[WarningRow]]:
+    """(level-2 onsets, level-1-or-higher onsets from 0), in time order."""
+    l2, l1 = [], []
+    prev_level, prev_track = 0, None
+    for w in sorted(warnings, key=lambda w: (w.t, w.frame)):
+        if w.level == 2 and (prev_level < 2 or w.track != prev_track):
+            l2.append(w)
+        if w.level >= 1 and prev_level == 0:
+            l1.append(w)
+        prev_level, prev_track = w.level, w.track
+    return l2, l1
+
+
+def _median(values: list[float]) -> float | None:
+    return float(np.median(values)) if values else None
+
+
+def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
+             frame_times: NDArray[np.float64], image_size: tuple[int, int],
+             mount: MountConfig) -> dict[str, Any]:
+    """All scores of one run as a JSON-ready dict (see the module docstring)."""
+    width, height = image_size
+    n_frames = len(frame_times)
+    duration_s = float(frame_times[-1] - frame_times[0]) if n_frames > 1 else 0.0
+    by_frame: dict[int, list[TrackRow]] = defaultdict(list)
+    for tr in tracks:
+        by_frame[tr.frame].append(tr)
+    movers = [o for o in truth.objects if o.moving]
+
+    # per frame, the best-matching track of every mover; attribution of track ids
+    match: dict[int, dict[int, TrackRow]] = {o.id: {} for o in movers}
+    votes: dict[int, Counter[int]] = defaultdict(Counter)
+    for o in movers:
+        for i, f in enumerate(o.frames):
+            box = clip_box(o.bbox[i], width, height)
+            best, best_iou = None, IOU_MATCH
+            for tr in by_frame.get(int(f), []):
+                v = iou(tr.bbox, box)
+                if v >= best_iou:
+                    best, best_iou = tr, v
+            if best is not None:
+                match[o.id][int(f)] = best
+                votes[best.id][o.id] += 1
+    owner: dict[int, int] = {}
+    for tid, c in votes.items():
+        oid, n = c.most_common(1)[0]
+        if n >= MIN_ATTRIBUTED_FRAMES:
+            owner[tid] = oid
+
+    objects_out = []
+    for o in movers:
+        clipped = np.array([clip_box(b, width, height) for b in o.bbox]).reshape(-1, 4)
+        tall = (clipped[:, 3] - clipped[:, 1]) >= MIN_HEIGHT_PX
+        wide = (clipped[:, 2] - clipped[:, 0]) > 0
+        eligible = o.frames[tall & wide & (o.visible >= MIN_VISIBLE)]
+        matched = sorted(match[o.id])
+        first_eligible = int(eligible[0]) if len(eligible) else None
+        first_det = int(matched[0]) if matched else None
+        delay = (None if first_eligible is None or first_det is None
+                 else max(first_det - first_eligible, 0))
+        tracked = (float(np.mean([int(f) in match[o.id] for f in eligible]))
+                   if len(eligible) else None)
+        objects_out.append({
+            "id": o.id, "class": o.cls, "eligible_frames": int(len(eligible)),
+            "first_eligible_frame": first_eligible, "first_detection_frame": first_det,
+            "detection_delay_frames": delay, "tracked_fraction": tracked,
+            "track_ids": sorted(t for t, oid in owner.items() if oid == o.id),
+        })
+
+    l2_onsets, l1_onsets = _onsets(warnings)
+    ct = truth.collision_t if truth.collision else None
+    colliding = _colliding_object(movers, ct, frame_times, mount) if ct is not None else None
+
+    def on_object(w: WarningRow, o: TruthObject) -> bool:
+        if w.track is not None and owner.get(w.track) == o.id:
+            return True
+        i = o.at(w.frame)
+        return w.bbox is not None and i is not None and \
+            iou(w.bbox, clip_box(o.bbox[i], width, height)) >= IOU_MATCH
+
+    if truth.collision:
+        false_l2 = [w for w in l2_onsets if not any(on_object(w, o) for o in movers)]
+    else:
+        false_l2 = list(l2_onsets)
+    first_l2_t = None
+    if colliding is not None and ct is not None:
+        hits = [w.t for w in l2_onsets if w.t <= ct + 1e-6 and on_object(w, colliding)]
+        first_l2_t = hits[0] if hits else None
+    lead = None if first_l2_t is None or ct is None else ct - first_l2_t
+
+    ttc_err, dist_err, ttc_cov, dist_cov = _last_window_errors(
+        colliding, ct, match, owner, by_frame, frame_times, mount) if colliding is not None \
+        and ct is not None else (None, None, None, None)
+
+    minutes = duration_s / 60.0
+    delays = [o["detection_delay_frames"] for o in objects_out]
+    worst_delay = None if not delays or any(d is None for d in delays) else max(delays)
+    result: dict[str, Any] = {
+        "scenario": truth.scenario,
+        "collision": truth.collision,
+        "collision_t": ct,
+        "frames": n_frames,
+        "duration_s": round(duration_s, 3),
+        "objects": objects_out,
+        "colliding_object": None if colliding is None else colliding.id,
+        "first_level2_t": first_l2_t,
+        "lead_time_s": None if lead is None else round(lead, 3),
+        "level2_onsets": len(l2_onsets),
+        "false_level2": len(false_l2),
+        "false_level2_t": [round(w.t, 3) for w in false_l2],
+        "level1_onsets": len(l1_onsets),
+        "level1_per_min": round(len(l1_onsets) / minutes, 3) if minutes > 0 else None,
+        "worst_detection_delay_frames": worst_delay,
+        "ttc_rel_error_median": ttc_err,
+        "ttc_coverage": ttc_cov,
+        "distance_rel_error_median": dist_err,
+        "distance_coverage": dist_cov,
+    }
+    result["targets"] = check_targets(result)
+    return result
+
+
+def check_targets(r: dict[str, Any]) -> dict[str, bool | None]:
+    """Pass/fail of the issue's targets for one scenario (None: does not apply)."""
+    coll = bool(r["collision"])
+    lead = r["lead_time_s"]
+    d = r["worst_detection_delay_frames"]
+    return {
+        "lead_time": (lead is not None and lead >= TARGETS["lead_time_s"]) if coll else None,
+        "no_false_level2": r["false_level2"] == 0,
+        "level1_rate": (r["level1_per_min"] is None or r["level1_per_min"] <= TARGETS["level1_per_min"])
+        if not coll else None,
+        "detection": None if not r["objects"] else (d is not None and d <= TARGETS["detect_frames"]),
+        "ttc_error": None if not coll else (r["ttc_rel_error_median"] is not None
+                                            and r["ttc_rel_error_median"] <= TARGETS["ttc_rel_error"]),
+        "distance_error": None if not coll else (
+            r["distance_rel_error_median"] is not None
+            and r["distance_rel_error_median"] <= TARGETS["distance_rel_error"]),
+    }
+
+
+def _frame_at(frame_times: NDArray[np.float64], t: float) -> int:
+    return int(np.clip(np.searchsorted(frame_times, t), 0, len(frame_times) - 1))
+
+
+def _colliding_object(movers: list[TruthObject], ct: float, frame_times: NDArray[np.float64],
+                      mount: MountConfig) -> TruthObject | None:
+    if not movers:
+        return None
+    f = _frame_at(frame_times, ct)
+    best, best_gap = movers[0], math.inf
+    for o in movers:
+        ok = np.flatnonzero(np.all(np.isfinite(o.pos), axis=1))
+        if len(ok) == 0:
+            continue
+        i = ok[np.argmin(np.abs(o.frames[ok] - f))]
+        gap = float(outline_gap(o.pos[i], mount, 0.0))
+        if gap < best_gap:
+            best, best_gap = o, gap
+    return best
+
+
+def _last_window_errors(o: TruthObject, ct: float, match: dict[int, dict[int, TrackRow]],
+                        owner: dict[int, int], by_frame: dict[int, list[TrackRow]],
+                        frame_times: NDArray[np.float64], mount: MountConfig
+                        ) -> tuple[float | None, float | None, float | None, float | None]:
+    ttc_err: list[float] = []
+    dist_err: list[float] = []
+    n_ttc = n_dist = n_win = 0
+    for f, t in enumerate(frame_times):
+        remaining = ct - float(t)
+        if not 0.0 < remaining <= LAST_WINDOW_S:
+            continue
+        n_win += 1
+        tr = match[o.id].get(f)
+        if tr is None:  # the attributed track, e.g. when the box left the image
+            own = [r for r in by_frame.get(f, []) if owner.get(r.id) == o.id]
+            tr = own[0] if own else None
+        if tr is None:
+            continue
+        if tr.ttc_s is not None:
+            n_ttc += 1
+            if remaining >= 0.2:
+                ttc_err.append(abs(tr.ttc_s - remaining) / remaining)
+        i = o.at(f)
+        if tr.distance_m is not None and i is not None and np.all(np.isfinite(o.pos[i])):
+            n_dist += 1
+            d_true = float(outline_gap(o.pos[i], mount, 0.0))
+            if d_true >= 0.5:
+                dist_err.append(abs(tr.distance_m - d_true) / d_true)
+    cov = (lambda n: round(n / n_win, 3) if n_win else None)
+    med_t, med_d = _median(ttc_err), _median(dist_err)
+    return (None if med_t is None else round(med_t, 4), None if med_d is None else round(med_d, 4),
+            cov(n_ttc), cov(n_dist))

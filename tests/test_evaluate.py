@@ -1,0 +1,169 @@
+"""``collision-warning evaluate`` on hand-made runs with known lead time and false warnings."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from appliance.cli import main as cli_main
+from appliance.config import Config
+from appliance.errors import UsageError
+from appliance.evaluate import evaluate_run
+from conftest import write_small_recording
+
+FPS = 30.0
+T0 = 100.0  # write_small_recording's first frame time
+N = 90
+CT = T0 + 2.5  # collision 2.5 s into the recording (frame 75)
+
+
+def small_cfg(cfg: Config) -> Config:
+    return cfg.with_overrides({"camera": {"width": 320, "height": 240, "cx": 159.5, "cy": 119.5}})
+
+
+def mover_box(f: int) -> list[float]:
+    """A mover growing from 10 px (frame 0) to 100 px tall (frame 89), centred at (160, 120)."""
+    h = 10.0 + f
+    return [160 - h / 4, 120 - h / 2, 160 + h / 4, 120 + h / 2]
+
+
+def truth(collision: bool) -> dict[str, object]:
+    frames = {}
+    for f in range(N):
+        t = T0 + f / FPS
+        x = 3.9 + 10.0 * (CT - t) if collision else 3.9 + 10.0 * (CT - t) + 0.0
+        y = 0.0 if collision else 5.0
+        frames[str(f)] = {"bbox": mover_box(f), "visible": 1.0, "pos_vehicle": [x, y],
+                          "vel_vehicle": [-10.0, 0.0]}
+    return {"scenario": "hand_made_collision" if collision else "hand_made_pass",
+            "collision": collision, "collision_t": CT if collision else None,
+            "objects": [{"id": 1, "class": "pedestrian", "moving": True, "frames": frames},
+                        {"id": 2, "class": "car", "moving": False,
+                         "frames": {"0": {"bbox": [10, 10, 60, 40], "visible": 1.0}}}],
+            "camera_poses": {}}
+
+
+def write_recording(path: Path, cfg: Config, collision: bool = True) -> Path:
+    write_small_recording(path, small_cfg(cfg), n_frames=N)
+    (path / "truth.json").write_text(json.dumps(truth(collision)))
+    return path
+
+
+def write_run(run: Path, tracks: list[dict[str, object]], warnings: list[dict[str, object]]) -> Path:
+    run.mkdir(parents=True, exist_ok=True)
+    by_frame: dict[int, list[dict[str, object]]] = {f: [] for f in range(N)}
+    for tr in tracks:
+        by_frame[int(tr.pop("frame"))].append(tr)  # type: ignore[call-overload]
+    with (run / "tracks.jsonl").open("w") as fh:
+        for f in range(N):
+            fh.write(json.dumps({"t": T0 + f / FPS, "frame": f, "tracks": by_frame[f]}) + "\n")
+    with (run / "warnings.jsonl").open("w") as fh:
+        for w in warnings:
+            fh.write(json.dumps(w) + "\n")
+    return run
+
+
+def warning(f: int, level: int, track: int | None, bbox: list[float] | None) -> dict[str, object]:
+    return {"t": T0 + f / FPS, "frame": f, "level": level, "track": track, "bbox": bbox,
+            "ttc_s": None, "distance_m": None, "bearing_rad": None}
+
+
+def collision_run(run: Path) -> Path:
+    tracks = []
+    for f in range(10, N):  # detected from frame 10; eligible (>= 15 px) from frame 5
+        t = T0 + f / FPS
+        remaining = CT - t
+        tracks.append({"frame": f, "id": 5, "bbox": mover_box(f), "probability": 0.8,
+                       "flow": [0.0, 0.0],
+                       "ttc_s": 1.1 * remaining if remaining > 0 else 0.0,
+                       "distance_m": 0.95 * 10.0 * remaining if remaining > 0 else 0.0})
+    for f in range(30, 34):  # a ghost track on the static scene
+        tracks.append({"frame": f, "id": 9, "bbox": [250, 20, 280, 60], "probability": 0.5,
+                       "flow": [0.0, 0.0], "ttc_s": 1.0, "distance_m": 8.0})
+    warnings = [
+        warning(15, 1, 5, mover_box(15)),
+        warning(32, 2, 9, [250, 20, 280, 60]),  # false: on the static scene
+        warning(36, 1, 5, mover_box(36)),
+        warning(21 + 2 * 10, 2, 5, mover_box(41)),  # frame 41: 2.5 - 41/30 = 1.1333 s lead
+        warning(80, 0, 5, None),
+    ]
+    return write_run(run, tracks, warnings)
+
+
+def test_collision_run_lead_time_false_warnings_and_errors(tmp_path: Path,
+                                                           default_config: Config) -> None:
+    rec = write_recording(tmp_path / "rec", default_config)
+    run = collision_run(tmp_path / "run")
+    r = evaluate_run(rec, run)
+    assert r["collision"] is True and r["colliding_object"] == 1
+    assert r["lead_time_s"] == pytest.approx(2.5 - 41 / FPS, abs=1e-3)
+    assert r["false_level2"] == 1 and r["false_level2_t"] == [pytest.approx(T0 + 32 / FPS, abs=1e-3)]
+    assert r["level2_onsets"] == 2
+    obj = r["objects"][0]
+    assert obj["first_eligible_frame"] == 5 and obj["first_detection_frame"] == 10
+    assert obj["detection_delay_frames"] == 5 and obj["track_ids"] == [5]
+    assert obj["tracked_fraction"] == pytest.approx(80 / 85)
+    # 10 % TTC error and 5 % distance error, by construction
+    assert r["ttc_rel_error_median"] == pytest.approx(0.1, abs=1e-3)
+    assert r["distance_rel_error_median"] == pytest.approx(0.05, abs=1e-3)
+    assert r["targets"]["lead_time"] is False and r["targets"]["no_false_level2"] is False
+    assert r["targets"]["ttc_error"] is True and r["targets"]["detection"] is True
+    saved = json.loads((run / "evaluation.json").read_text())
+    assert saved["lead_time_s"] == r["lead_time_s"]
+    png = (run / "timeline.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
+
+
+def test_no_collision_counts_every_level2_and_level1_rate(tmp_path: Path,
+                                                          default_config: Config) -> None:
+    rec = write_recording(tmp_path / "rec", default_config, collision=False)
+    warnings = [warning(10, 1, 3, None), warning(20, 0, 3, None), warning(30, 1, 3, None),
+                warning(33, 2, 3, mover_box(33)), warning(50, 0, 3, None)]
+    run = write_run(tmp_path / "run", [], warnings)
+    r = evaluate_run(rec, run, plot=False)
+    assert r["lead_time_s"] is None and r["false_level2"] == 1
+    assert r["level1_onsets"] == 2
+    assert r["level1_per_min"] == pytest.approx(2 / ((N - 1) / FPS / 60), rel=1e-3)
+    assert r["targets"]["level1_rate"] is False and r["targets"]["lead_time"] is None
+    assert r["objects"][0]["first_detection_frame"] is None
+    assert r["targets"]["detection"] is False
+
+
+def test_missed_warning_has_no_lead_time(tmp_path: Path, default_config: Config) -> None:
+    rec = write_recording(tmp_path / "rec", default_config)
+    run = write_run(tmp_path / "run", [], [warning(85, 2, 1, mover_box(85))])  # after contact
+    r = evaluate_run(rec, run, plot=False)
+    assert r["lead_time_s"] is None and r["targets"]["lead_time"] is False
+
+
+def test_cli_errors_are_one_line_exit_2(tmp_path: Path, default_config: Config,
+                                        capsys: pytest.CaptureFixture[str]) -> None:
+    rec = write_recording(tmp_path / "rec", default_config)
+    no_truth = tmp_path / "plain"
+    write_small_recording(no_truth, small_cfg(default_config), n_frames=3)
+    run = collision_run(tmp_path / "run")
+    assert cli_main(["evaluate", str(no_truth), str(run)]) == 2
+    err = capsys.readouterr().err
+    assert "no truth.json" in err and len(err.strip().splitlines()) == 1
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert cli_main(["evaluate", str(rec), str(empty)]) == 2
+    err = capsys.readouterr().err
+    assert "tracks.jsonl: missing" in err and len(err.strip().splitlines()) == 1
+    (run / "warnings.jsonl").write_text('{"t": 1.0, "frame": 1, "level": 2}\n{oops\n')
+    assert cli_main(["evaluate", str(rec), str(run)]) == 2
+    assert "warnings.jsonl:2: invalid JSON" in capsys.readouterr().err
+    with pytest.raises(UsageError, match="level must be 0, 1 or 2"):
+        (run / "warnings.jsonl").write_text('{"t": 1.0, "frame": 1, "level": 7}\n')
+        evaluate_run(rec, run, plot=False)
+
+
+def test_cli_prints_the_table(tmp_path: Path, default_config: Config,
+                              capsys: pytest.CaptureFixture[str]) -> None:
+    rec = write_recording(tmp_path / "rec", default_config)
+    run = collision_run(tmp_path / "run")
+    assert cli_main(["evaluate", str(rec), str(run)]) == 0
+    out = capsys.readouterr().out
+    assert "hand_made_collision" in out and "1.13" in out and "FAIL" in out

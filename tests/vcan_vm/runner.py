@@ -79,12 +79,15 @@ def check_host(kernel_image: Path | None = None) -> Kernel:
 
 
 def suite_command(repo: Path) -> list[str]:
-    """The in-guest suite: the ``vcan``-marked tests of ``repo/tests/test_vcan_*.py``.
+    """The in-guest suite: every ``vcan``-marked test under ``repo/tests``, in one pytest.
 
-    Only those files are collected, so an unrelated test module cannot break the
-    VM run; ``-v`` prints each test's name as it starts, so a hang names its test.
+    Only the files that use the marker are collected (named ``test_vcan_*.py``
+    or mentioning ``mark.vcan``), so an unrelated test module cannot break or
+    slow the VM run; ``-v`` prints each test's name as it starts, so a hang
+    names its test.
     """
-    files = sorted(str(p.relative_to(repo)) for p in (repo / "tests").glob("test_vcan_*.py"))
+    files = sorted(str(p.relative_to(repo)) for p in (repo / "tests").glob("test_*.py")
+                   if p.name.startswith("test_vcan_") or "mark.vcan" in p.read_text(errors="replace"))
     return [sys.executable, "-m", "pytest", "-v", "-m", "vcan", "-p", "no:cacheprovider", *files]
 
 

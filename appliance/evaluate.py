@@ -93,8 +93,9 @@ def main(args: argparse.Namespace) -> int:
     print_table([table_row(result)])
     for o in result["objects"]:
         print(f"  object {o['id']} ({o['class']}): first eligible frame "
-              f"{_fmt(o['first_eligible_frame'])}, first detection {_fmt(o['first_detection_frame'])}, "
-              f"delay {_fmt(o['detection_delay_frames'])} frames, tracked "
-              f"{_fmt(o['tracked_fraction'], '.0%')}, tracks {o['track_ids']}")
-    print(f"wrote {Path(args.run_dir) / 'evaluation.json'} and {Path(args.run_dir) / 'timeline.png'}")
+              f"{_fmt(o['first_eligible_frame'])}, first detection "
+              f"{_fmt(o['first_detection_frame'])}, delay {_fmt(o['detection_delay_frames'])} "
+              f"frames, tracked {_fmt(o['tracked_fraction'], '.0%')}, tracks {o['track_ids']}")
+    run = Path(args.run_dir)
+    print(f"wrote {run / 'evaluation.json'} and {run / 'timeline.png'}")
     return 0

@@ -28,8 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from appliance.errors import ApplianceError
-from appliance.evaluate import print_table, table_row
-from appliance.evaluate import evaluate_run
+from appliance.evaluate import evaluate_run, print_table, table_row
 
 CLI = [sys.executable, "-m", "appliance"]
 
@@ -166,8 +165,8 @@ def main(argv: list[str]) -> int:
           f" (median lead {_med([v for v in leads if v is not None]) or float('nan'):.2f} s)")
     print(f"false level-2 warnings: {sum(r['false_level2'] for r in ok)} "
           f"(no-collision runs with any: {sum(1 for r in calm if r['false_level2'])}/{len(calm)})")
-    print(f"runs meeting every target: {sum(1 for r in ok if not any(v is False for v in r['targets'].values()))}"
-          f"/{len(results)}")
+    meeting = sum(1 for r in ok if not any(v is False for v in r["targets"].values()))
+    print(f"runs meeting every target: {meeting}/{len(results)}")
     return 0 if all(a["targets"] == "ok" for a in agg) else 1
 
 

@@ -203,6 +203,7 @@ def test_bumper_correction_and_fusion(default_config: Config) -> None:
     assert bumper_ttc((2.0, 0.1), 20.0, mount) == pytest.approx((1.8, 0.09))
     assert bumper_ttc((2.0, 0.1), None, mount) == (2.0, 0.1)
     f = fuse((2.0, 0.1), (2.4, 0.2))
-    assert f is not None and f[0] == pytest.approx((2.0 / 0.01 + 2.4 / 0.04) / (1 / 0.01 + 1 / 0.04))
+    expected = (2.0 / 0.01 + 2.4 / 0.04) / (1 / 0.01 + 1 / 0.04)
+    assert f is not None and f[0] == pytest.approx(expected)
     assert f[1] < 0.1
     assert fuse(None, (1.0, 0.1)) == (1.0, 0.1) and fuse(None, None) is None

@@ -51,7 +51,8 @@ def write_recording(path: Path, cfg: Config, collision: bool = True) -> Path:
     return path
 
 
-def write_run(run: Path, tracks: list[dict[str, object]], warnings: list[dict[str, object]]) -> Path:
+def write_run(run: Path, tracks: list[dict[str, object]], warnings: list[dict[str, object]]
+              ) -> Path:
     run.mkdir(parents=True, exist_ok=True)
     by_frame: dict[int, list[dict[str, object]]] = {f: [] for f in range(N)}
     for tr in tracks:
@@ -99,7 +100,8 @@ def test_collision_run_lead_time_false_warnings_and_errors(tmp_path: Path,
     r = evaluate_run(rec, run)
     assert r["collision"] is True and r["colliding_object"] == 1
     assert r["lead_time_s"] == pytest.approx(2.5 - 41 / FPS, abs=1e-3)
-    assert r["false_level2"] == 1 and r["false_level2_t"] == [pytest.approx(T0 + 32 / FPS, abs=1e-3)]
+    assert r["false_level2"] == 1
+    assert r["false_level2_t"] == [pytest.approx(T0 + 32 / FPS, abs=1e-3)]
     assert r["level2_onsets"] == 2
     obj = r["objects"][0]
     assert obj["first_eligible_frame"] == 5 and obj["first_detection_frame"] == 10

@@ -29,14 +29,18 @@ from appliance.decision.ground_state import (
     ground_update, update_body_pitch,
 )
 from appliance.decision.probability_map import empty_map, spatio_temporal_filter
-from appliance.decision.scale_ttc import ScaleState, measure_expansion, scale_predict, scale_ttc, scale_update
+from appliance.decision.scale_ttc import (
+    ScaleState, measure_expansion, scale_predict, scale_ttc, scale_update,
+)
 from appliance.decision.threat import (
     bumper_ttc, constant_bearing_course, fuse, ground_ttc_std, object_radius, outline_gap,
     predict_path, scale_lateral_miss,
 )
 from appliance.decision.tracking import ImageModel, ImageTrack, TrackerState, track_step
 from appliance.decision.warnings import TrackThreat, WarningState, warning_step
-from appliance.messages import EgoMotion, ParticleSet, ProbabilityMap, SensorSample, TrackReport, WarningEvent
+from appliance.messages import (
+    EgoMotion, ParticleSet, ProbabilityMap, SensorSample, TrackReport, WarningEvent,
+)
 from appliance.vision.geometry import PinholeCamera
 
 BEARING_HISTORY = 10  # frames of bearing kept per track for its rate
@@ -125,7 +129,8 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
             u0, _, u1, v1 = c.bbox
             contact = ground_contact(camera, (0.5 * (u0 + u1), v1 - 0.5), pose, cfg.ground)
             if contact is not None:
-                g = ground_init(contact, t, cfg.ground) if g is None else ground_update(g, contact, t)
+                g = (ground_init(contact, t, cfg.ground) if g is None
+                     else ground_update(g, contact, t))
                 fresh = True
         moving = c.weights >= cfg.clustering.member_weight
         m = measure_expansion(c.positions[moving], c.flows[moving], c.weights[moving],
@@ -175,11 +180,11 @@ def assess(track: ImageTrack, cues: TrackCues, sensors: SensorSample, cfg: Confi
         pos, vel = g.position, g.velocity
         distance = float(outline_gap(pos, mount, 0.0))
         depth = float(pos[0] - mount.x_m)
-        radius = object_radius(track.size[0], float(np.hypot(pos[0] - mount.x_m, pos[1] - mount.y_m)),
-                               camera.fx)
+        rng = float(np.hypot(pos[0] - mount.x_m, pos[1] - mount.y_m))
+        radius = object_radius(track.size[0], rng, camera.fx)
         base = predict_path(pos, vel, speed, yaw, mount, w.corridor_margin_m, radius, w.horizon_s)
-        wide = predict_path(pos, vel, speed, yaw, mount, w.corridor_margin_m + w.corridor_hysteresis_m,
-                            radius, w.horizon_s)
+        wide = predict_path(pos, vel, speed, yaw, mount,
+                            w.corridor_margin_m + w.corridor_hysteresis_m, radius, w.horizon_s)
         on_course, on_wide = base.ttc is not None, wide.ttc is not None
         ttc_g = base.ttc if base.ttc is not None else wide.ttc
         if ttc_g is not None:
@@ -244,7 +249,8 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
         if tr.confirmed:
             threats.append(assess(tr, cues[tr.uid], sensors, cfg, camera))
     threats.sort(key=lambda th: th.report.id)
-    warning, events, warned = warning_step(state.warning, tuple(threats), t, frame_index, cfg.warning)
+    warning, events, warned = warning_step(state.warning, tuple(threats), t, frame_index,
+                                           cfg.warning)
     new_state = DecisionState(prob=prob, tracker=tracker, cues=cues, warning=warning,
                               body_pitch=body_pitch, pose=pose, t=t, model=model)
     out = DecisionOutput(

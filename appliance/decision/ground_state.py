@@ -71,7 +71,7 @@ def update_body_pitch(b: float, ego: EgoMotion, pose_prev: CameraPose, dt: float
     decay = math.exp(-max(dt, 0.0) / cfg.pitch_decay_s)
     if not ego.confident:
         return b * decay
-    d = np.asarray(ego.rotation, dtype=np.float64) - np.asarray(ego.prior_rotation, dtype=np.float64)
+    d = np.asarray(ego.rotation, dtype=np.float64) - np.asarray(ego.prior_rotation, float)
     if not np.all(np.isfinite(d)):
         return b * decay
     inc = -float((pose_prev.rotation() @ d)[1])

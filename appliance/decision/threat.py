@@ -59,8 +59,8 @@ class PathPrediction:
 def outline_gap(q: FloatArray, mount: MountConfig, margin: float) -> FloatArray:
     """Distance (m) from points q (..., 2) in a vehicle frame to the ego outline widened
     laterally by ``margin``; 0 inside."""
-    dx = np.maximum(np.maximum(-mount.vehicle_rear_m - q[..., 0], q[..., 0] - mount.vehicle_front_m),
-                    0.0)
+    dx = np.maximum(np.maximum(-mount.vehicle_rear_m - q[..., 0],
+                               q[..., 0] - mount.vehicle_front_m), 0.0)
     dy = np.maximum(np.abs(q[..., 1]) - (0.5 * mount.vehicle_width_m + margin), 0.0)
     return np.hypot(dx, dy)
 

@@ -71,7 +71,8 @@ def _indicated(th: TrackThreat, threshold: float, wide: bool, hysteresis: float)
 
 
 def warning_step(state: WarningState, threats: tuple[TrackThreat, ...], t: float, frame: int,
-                 cfg: WarningConfig) -> tuple[WarningState, tuple[WarningEvent, ...], TrackReport | None]:
+                 cfg: WarningConfig
+                 ) -> tuple[WarningState, tuple[WarningEvent, ...], TrackReport | None]:
     """One frame: (new state, events of this frame, the report behind the issued level)."""
     thresholds = {1: cfg.ttc_caution_s, 2: cfg.ttc_warning_s}
     streaks: dict[int, tuple[int, int]] = {}

@@ -71,7 +71,8 @@ def iou(a: Box | NDArray[np.float64], b: Box | NDArray[np.float64]) -> float:
 
 
 def clip_box(b: NDArray[np.float64], width: int, height: int) -> NDArray[np.float64]:
-    return np.array([max(b[0], 0.0), max(b[1], 0.0), min(b[2], float(width)), min(b[3], float(height))])
+    return np.array([max(b[0], 0.0), max(b[1], 0.0), min(b[2], float(width)),
+                     min(b[3], float(height))])
 
 
 def _onsets(warnings: list[WarningRow]) -> tuple[list[WarningRow], list[WarningRow]]:
@@ -201,17 +202,19 @@ def check_targets(r: dict[str, Any]) -> dict[str, bool | None]:
     coll = bool(r["collision"])
     lead = r["lead_time_s"]
     d = r["worst_detection_delay_frames"]
+    def within(key: str, target: str) -> bool:
+        return r[key] is not None and r[key] <= TARGETS[target]
+
+    l1 = r["level1_per_min"]
     return {
         "lead_time": (lead is not None and lead >= TARGETS["lead_time_s"]) if coll else None,
         "no_false_level2": r["false_level2"] == 0,
-        "level1_rate": (r["level1_per_min"] is None or r["level1_per_min"] <= TARGETS["level1_per_min"])
-        if not coll else None,
-        "detection": None if not r["objects"] else (d is not None and d <= TARGETS["detect_frames"]),
-        "ttc_error": None if not coll else (r["ttc_rel_error_median"] is not None
-                                            and r["ttc_rel_error_median"] <= TARGETS["ttc_rel_error"]),
-        "distance_error": None if not coll else (
-            r["distance_rel_error_median"] is not None
-            and r["distance_rel_error_median"] <= TARGETS["distance_rel_error"]),
+        "level1_rate": None if coll else (l1 is None or l1 <= TARGETS["level1_per_min"]),
+        "detection": None if not r["objects"] else (d is not None
+                                                    and d <= TARGETS["detect_frames"]),
+        "ttc_error": within("ttc_rel_error_median", "ttc_rel_error") if coll else None,
+        "distance_error": within("distance_rel_error_median", "distance_rel_error")
+        if coll else None,
     }
 
 

@@ -108,7 +108,8 @@ def read_tracks(path: Path) -> list[TrackRow]:
     for n, row in _lines(path):
         where = f"{path}:{n}"
         try:
-            frame, t, tracks = int(row["frame"]), _num(row["t"], where, "t", optional=False), row["tracks"]
+            frame, tracks = int(row["frame"]), row["tracks"]
+            t = _num(row["t"], where, "t", optional=False)
         except (KeyError, TypeError, ValueError):
             raise UsageError(f"{where}: needs frame, t and tracks") from None
         if not isinstance(tracks, list):

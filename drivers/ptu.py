@@ -36,7 +36,6 @@ import logging
 import math
 import threading
 import time
-from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -44,9 +43,13 @@ import serial
 
 from drivers.backoff import Backoff
 from drivers.link import Counters, LinkState, LinkStatus
-from drivers.ptu_protocol import (
-    Reply, ReplyKind, ReplyParser, PtuProtocolError, encode_command, parse_float, parse_int,
+from drivers.ptu_link import (
+    NoReply, PtuCommandError, PtuInitError, PtuLink, UnitReset, handshake,
 )
+from drivers.ptu_protocol import PtuProtocolError, parse_int
+
+__all__ = ["PtuDriver", "PtuSample", "PtuStats", "AxisCalibration", "PtuLimitError",
+           "PtuCommandError", "PtuInitError", "open_serial"]
 
 log = logging.getLogger(__name__)
 
@@ -110,24 +113,8 @@ class AxisCalibration:
         return (min(a, b), max(a, b))
 
 
-class PtuCommandError(Exception):
-    """The unit answered ``!`` (text in the message)."""
-
-
 class PtuLimitError(ValueError):
     """A requested move lies outside the limits the unit reported."""
-
-
-class PtuInitError(Exception):
-    """The init handshake failed (no answer, an error reply, or implausible values)."""
-
-
-class _NoReply(Exception):
-    pass
-
-
-class _Resync(Exception):
-    """The unit was reset or stopped answering: run the handshake again."""
 
 
 SerialFactory = Callable[[str, int, float], serial.SerialBase]
@@ -181,10 +168,7 @@ class PtuDriver:
         self._want_speed: float | None = speed_rad_s
         self._last_speed: float | None = None
         self._want_move: tuple[float, float] | None = None
-        self._port: serial.SerialBase | None = None
-        self._parser = ReplyParser()
-        self._replies: deque[Reply] = deque()
-        self._dirty = False
+        self._link: PtuLink | None = None
         self._thread: threading.Thread | None = None
 
     # ---------------------------------------------------------------- public
@@ -273,27 +257,27 @@ class PtuDriver:
     def _run(self) -> None:
         while not self._stop.is_set():
             try:
-                self._port = self._factory(self.port_name, self._baud,
-                                           min(0.05, self._timeout / 4.0))
+                port = self._factory(self.port_name, self._baud, min(0.05, self._timeout / 4.0))
             except (serial.SerialException, OSError, ValueError) as exc:
                 self._count("open_failures", f"open {self.port_name}: {exc}")
                 self._status.set(LinkState.LOST, f"cannot open {self.port_name}: {exc}")
             else:
                 self._count("opens")
-                self._session()
+                self._session(port)
             if self._stop.is_set():
                 break
             self._stop.wait(self._backoff.next_delay())
 
-    def _session(self) -> None:
+    def _session(self, port: serial.SerialBase) -> None:
         """Handshake and poll until stop or failure; always closes the port."""
+        self._link = PtuLink(port, self._timeout, self._retries, self._counts)
         try:
             while not self._stop.is_set():
                 try:
-                    self._initialise()
+                    self._initialise(self._link)
                     self._backoff.reset()
-                    self._poll_loop()
-                except _Resync as exc:
+                    self._poll_loop(self._link)
+                except UnitReset as exc:
                     self._status.set(LinkState.STALE, str(exc))
         except (serial.SerialException, OSError) as exc:
             self._count("port_lost", f"port {self.port_name}: {exc}")
@@ -302,56 +286,41 @@ class PtuDriver:
             self._count("init_failures", f"init: {exc}")
             self._status.set(LinkState.LOST, f"init failed: {exc}")
         finally:
-            port, self._port = self._port, None
-            if port is not None:
-                try:
-                    port.close()
-                except (serial.SerialException, OSError):
-                    pass   # already gone
+            self._link = None
+            try:
+                port.close()
+            except (serial.SerialException, OSError):
+                pass   # already gone
 
-    def _initialise(self) -> None:
-        self._flush()
-        try:
-            for op in ("ED", "FT", "CI", "I"):
-                self._transact(op, during_init=True)
-            res = {k: parse_float(self._transact(f"{k}R", during_init=True)) for k in "PT"}
-            lim = {k: (parse_int(self._transact(f"{k}N", during_init=True)),
-                       parse_int(self._transact(f"{k}X", during_init=True))) for k in "PT"}
-            spd = {k: (parse_int(self._transact(f"{k}L", during_init=True)),
-                       parse_int(self._transact(f"{k}U", during_init=True))) for k in "PT"}
-        except (_NoReply, PtuCommandError, PtuProtocolError) as exc:
-            raise PtuInitError(str(exc)) from None
-        for k in "PT":
-            if not res[k] > 0.0 or lim[k][0] >= lim[k][1] or not 0 < spd[k][0] <= spd[k][1]:
-                raise PtuInitError(f"implausible {k}: resolution {res[k]} arcsec, limits "
-                                   f"{lim[k]}, speed bounds {spd[k]}")
-        self._cal = {k: AxisCalibration(res[k] * ARCSEC, self._signs[k], self._offsets[k],
-                                        *lim[k]) for k in "PT"}
-        self._speed_bounds = spd
+    def _initialise(self, link: PtuLink) -> None:
+        info = handshake(link)
+        self._cal = {k: AxisCalibration(info.resolution_arcsec[k] * ARCSEC, self._signs[k],
+                                        self._offsets[k], *info.limits[k]) for k in "PT"}
+        self._speed_bounds = info.speed_bounds
         with self._lock:
             if self._want_speed is None and self._last_speed is not None:
                 self._want_speed = self._last_speed   # the unit forgot it on reset
 
-    def _poll_loop(self) -> None:
+    def _poll_loop(self, link: PtuLink) -> None:
         failures = 0
         next_t = time.monotonic()
         while not self._stop.is_set():
-            self._send_requests()
+            self._send_requests(link)
             try:
                 t0 = time.monotonic()
-                pan = parse_int(self._transact("PP"))
-                tilt = parse_int(self._transact("TP"))
+                pan = parse_int(link.transact("PP"))
+                tilt = parse_int(link.transact("TP"))
                 t1 = time.monotonic()
             except PtuProtocolError as exc:   # verbose text: the unit was reset
                 self._count("resets_detected", str(exc))
-                raise _Resync(f"unit reset ({exc})") from None
-            except (_NoReply, PtuCommandError) as exc:
+                raise UnitReset(f"unit reset ({exc})") from None
+            except (NoReply, PtuCommandError) as exc:
                 failures += 1
                 if isinstance(exc, PtuCommandError):
                     self._count("error_replies", f"position query: ! {exc}")
                 if failures >= self._fault_after:
                     self._count("unresponsive", f"{failures} position queries failed")
-                    raise _Resync(f"{failures} position queries failed") from None
+                    raise UnitReset(f"{failures} position queries failed") from None
             else:
                 failures = 0
                 sample = PtuSample(0.5 * (t0 + t1), self._cal["P"].to_rad(pan),
@@ -369,7 +338,7 @@ class PtuDriver:
             self._wake.wait(next_t - now)
             self._wake.clear()
 
-    def _send_requests(self) -> None:
+    def _send_requests(self, link: PtuLink) -> None:
         with self._lock:
             speed, self._want_speed = self._want_speed, None
             move, self._want_move = self._want_move, None
@@ -378,7 +347,7 @@ class PtuDriver:
             for k in "PT":
                 lo, hi = self._speed_bounds[k]
                 steps = min(hi, max(lo, round(speed / self._cal[k].rad_per_step)))
-                self._command(f"{k}S", steps, "speed")
+                self._command(link, f"{k}S", steps, "speed")
         if move is not None:
             steps = {k: self._cal[k].to_steps(rad) for k, rad in zip("PT", move)}
             if any(not self._cal[k].lo <= steps[k] <= self._cal[k].hi for k in "PT"):
@@ -386,80 +355,16 @@ class PtuDriver:
                 return
             self._count("moves")
             for k in "PT":
-                if not self._command(f"{k}P", steps[k], "move"):
+                if not self._command(link, f"{k}P", steps[k], "move"):
                     self._count("rejected_moves")
 
-    def _command(self, op: str, arg: int, what: str) -> bool:
+    def _command(self, link: PtuLink, op: str, arg: int, what: str) -> bool:
         """Send a setting; an error reply or no reply is counted, not retried again."""
         try:
-            self._transact(op, arg)
+            link.transact(op, arg)
             return True
         except PtuCommandError as exc:
             self._count("error_replies", f"{what} {op}{arg}: ! {exc}")
-        except _NoReply as exc:
+        except NoReply as exc:
             self._count("unanswered_commands", f"{what} {op}{arg}: {exc}")
         return False
-
-    # ---------------------------------------------------------------- one exchange
-
-    def _flush(self) -> None:
-        assert self._port is not None
-        self._port.reset_input_buffer()
-        self._parser.reset()
-        self._replies.clear()
-        self._dirty = False
-
-    def _transact(self, op: str, arg: int | None = None, *, during_init: bool = False) -> Reply:
-        """Send ``op[arg]`` and return its ``*`` reply (retried after a timeout)."""
-        assert self._port is not None
-        data = encode_command(op, arg)
-        for _ in range(self._retries + 1):
-            if self._dirty:
-                self._flush()
-            self._port.write(data)
-            reply = self._await_reply(data.decode().strip(), time.monotonic() + self._timeout,
-                                      during_init)
-            if reply is not None:
-                return reply
-            self._count("timeouts", f"no reply to {data.decode().strip()}")
-            self._dirty = True
-        raise _NoReply(f"no reply to {data.decode().strip()} after {self._retries + 1} tries")
-
-    def _await_reply(self, sent: str, deadline: float, during_init: bool) -> Reply | None:
-        """The next OK reply to ``sent`` before ``deadline``; None on timeout.
-
-        While echo may still be on (init), an echo of another command marks the reply
-        after it as belonging to that command, and it is skipped.
-        """
-        assert self._port is not None
-        skip = False
-        while True:
-            while self._replies:
-                r = self._replies.popleft()
-                if r.kind in (ReplyKind.OK, ReplyKind.ERROR) and skip:
-                    skip = False
-                    self._count("stray_replies", f"stray reply {r.text!r} while awaiting {sent}")
-                elif r.kind is ReplyKind.OK:
-                    return r
-                elif r.kind is ReplyKind.ERROR:
-                    raise PtuCommandError(r.text)
-                if r.kind is ReplyKind.LIMIT:
-                    self._count("limit_events", f"limit hit on axis {r.text}")
-                elif r.kind is ReplyKind.GARBAGE:
-                    self._count("garbage", f"garbage {r.text}")
-                    self._dirty = True
-                elif r.kind is ReplyKind.BANNER:
-                    self._count("banners")
-                    if not during_init:
-                        self._count("resets_detected", f"banner {r.text!r}")
-                        raise _Resync("unit reset (banner)")
-                elif r.kind is ReplyKind.ECHO and during_init:
-                    skip = r.text != sent
-                elif r.kind is ReplyKind.ECHO:
-                    self._count("resets_detected", f"echo of {r.text}")
-                    raise _Resync("unit reset (echo is on again)")
-            if time.monotonic() >= deadline:
-                return None
-            chunk = self._port.read(max(1, self._port.in_waiting))
-            if chunk:
-                self._replies.extend(self._parser.feed(chunk))

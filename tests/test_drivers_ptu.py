@@ -18,6 +18,7 @@ import serial
 from drivers.handoff import Handoff
 from drivers.link import LinkState
 from drivers.ptu import AxisCalibration, PtuDriver, PtuLimitError, PtuSample
+from drivers.ptu_link import PtuLink, handshake
 from drivers.ptu_sim import PtuSimulator
 from drivers.ptu_unit import PAN_LIMITS, RESOLUTION_ARCSEC, TILT_LIMITS
 
@@ -274,10 +275,10 @@ def test_ptu_sim_command_runs_until_sigterm(tmp_path: Path) -> None:
         line = proc.stdout.readline().strip()
         device = line.split()[0]
         assert device.startswith("/dev/pts/") and os.path.realpath(link) == device
-        with serial.Serial(str(link), 115200, timeout=1.0) as port:
-            port.write(b"ED FT PR ")
-            lines = [port.readline() for _ in range(3)]
-        assert lines[-1] == b"* 185.1428\r\n"
+        with serial.Serial(str(link), 115200, timeout=0.05) as port:
+            info = handshake(PtuLink(port, timeout_s=1.0))
+        assert info.resolution_arcsec == {"P": RESOLUTION_ARCSEC, "T": RESOLUTION_ARCSEC}
+        assert info.limits == {"P": PAN_LIMITS, "T": TILT_LIMITS}
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(20.0) == 0
         assert not link.exists()

@@ -9,20 +9,29 @@ kernel with vcan1 up (see README); elsewhere it skips with the reason.
 from __future__ import annotations
 
 import re
+from itertools import pairwise
 from pathlib import Path
+from typing import cast
 
 import can
 import cantools
 import numpy as np
 import pytest
 from crccheck.crc import Crc8SaeJ1850
+from vcan_vm.peer import (
+    HMI_BUS,
+    Candump,
+    ip_link,
+    require_root,
+    require_socketcan,
+    require_tools,
+    restored_vcan,
+)
 
 from appliance.config import Config, load_config, resource_path
 from drivers.hmi_can import HmiCanWriter
 from drivers.hmi_codec import HmiCodec, HmiStatus, HmiWarning
 from drivers.link import LinkState
-from vcan_vm.peer import HMI_BUS, Candump, ip_link, require_root, require_socketcan, \
-    require_tools, restored_vcan
 
 pytestmark = [pytest.mark.vcan,
               pytest.mark.filterwarnings("error::pytest.PytestUnhandledThreadExceptionWarning")]
@@ -38,7 +47,9 @@ def cfg() -> Config:
 
 @pytest.fixture(scope="module")
 def appliance_db() -> cantools.database.can.Database:
-    return cantools.database.load_file(str(resource_path("appliance.dbc")))
+    db = cantools.database.load_file(str(resource_path("appliance.dbc")))
+    assert isinstance(db, cantools.database.can.Database)
+    return db
 
 
 def writer_for(cfg: Config, log: Path) -> HmiCanWriter:
@@ -58,10 +69,10 @@ def check_frames(frames: list[can.Message], db: cantools.database.can.Database,
         data = bytes(m.data)
         assert Crc8SaeJ1850.calc(data[:7]) == data[7], f"CRC wrong in {m}"
         values = db.get_message_by_name(ids[m.arbitration_id]).decode(data, decode_choices=False)
-        decoded[m.arbitration_id].append(values)
-    for ident, values in decoded.items():
-        counters = [int(v["Counter"]) for v in values]
-        steps = {(b - a) % 16 for a, b in zip(counters, counters[1:])}
+        decoded[m.arbitration_id].append(cast(dict[str, float], values))
+    for ident, rows in decoded.items():
+        counters = [int(v["Counter"]) for v in rows]
+        steps = {(b - a) % 16 for a, b in pairwise(counters)}
         assert steps <= {1}, f"0x{ident:X} counters {counters}"
     return decoded
 

@@ -13,9 +13,17 @@ from pathlib import Path
 import can
 import numpy as np
 import pytest
-
-from vcan_vm.peer import (HMI_BUS, VEHICLE_BUS, Candump, canplayer, ip_link, require_root,
-                          require_socketcan, require_tools, restored_vcan)
+from vcan_vm.peer import (
+    HMI_BUS,
+    VEHICLE_BUS,
+    Candump,
+    canplayer,
+    ip_link,
+    require_root,
+    require_socketcan,
+    require_tools,
+    restored_vcan,
+)
 
 pytestmark = pytest.mark.vcan
 
@@ -38,7 +46,7 @@ def _key(m: can.Message) -> tuple[int, bool, bytes]:
 
 
 def _receive(bus: can.BusABC, n: int, timeout: float = 5.0) -> list[can.Message]:
-    got = []
+    got: list[can.Message] = []
     while len(got) < n:
         m = bus.recv(timeout)
         if m is None:
@@ -119,17 +127,16 @@ def test_link_down_then_up_errors_then_delivers_again() -> None:
 def test_link_deleted_and_recreated_needs_a_new_socket() -> None:
     require_socketcan(VEHICLE_BUS)
     require_root()
-    with restored_vcan(VEHICLE_BUS):
-        with can.Bus(interface="socketcan", channel=VEHICLE_BUS) as old:
-            ip_link("delete", VEHICLE_BUS)
-            with pytest.raises(can.CanOperationError):
-                old.recv(1.0)  # ENODEV
-            with pytest.raises(OSError):
-                can.Bus(interface="socketcan", channel=VEHICLE_BUS)
-            ip_link("add", "dev", VEHICLE_BUS, "type", "vcan")
-            ip_link("set", "up", VEHICLE_BUS)
-            with can.Bus(interface="socketcan", channel=VEHICLE_BUS) as new:
-                _send_one(VEHICLE_BUS, 0x1A1)
-                m = new.recv(2.0)
-                assert m is not None and m.arbitration_id == 0x1A1
-            assert old.recv(0.3) is None  # the old socket stays unbound: reopen is required
+    with restored_vcan(VEHICLE_BUS), can.Bus(interface="socketcan", channel=VEHICLE_BUS) as old:
+        ip_link("delete", VEHICLE_BUS)
+        with pytest.raises(can.CanOperationError):
+            old.recv(1.0)  # ENODEV
+        with pytest.raises(OSError):
+            can.Bus(interface="socketcan", channel=VEHICLE_BUS)
+        ip_link("add", "dev", VEHICLE_BUS, "type", "vcan")
+        ip_link("set", "up", VEHICLE_BUS)
+        with can.Bus(interface="socketcan", channel=VEHICLE_BUS) as new:
+            _send_one(VEHICLE_BUS, 0x1A1)
+            m = new.recv(2.0)
+            assert m is not None and m.arbitration_id == 0x1A1
+        assert old.recv(0.3) is None  # the old socket stays unbound: reopen is required

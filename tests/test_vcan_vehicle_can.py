@@ -11,19 +11,27 @@ import math
 import threading
 import time
 from pathlib import Path
+from typing import Self
 
 import can
 import cantools
 import numpy as np
 import pytest
+from vcan_vm.peer import (
+    VEHICLE_BUS,
+    canplayer,
+    ip_link,
+    require_root,
+    require_socketcan,
+    require_tools,
+    restored_vcan,
+)
 
 from appliance.config import Config, load_config, resource_path
 from appliance.recording import Recording, RecordingWriter, meta_from_config
 from drivers.link import LinkState
 from drivers.vehicle_can import VehicleCanReader
 from drivers.vehicle_signals import SignalKind, VehicleSignal, VehicleSignalDecoder
-from vcan_vm.peer import VEHICLE_BUS, canplayer, ip_link, require_root, require_socketcan, \
-    require_tools, restored_vcan
 
 pytestmark = [pytest.mark.vcan,
               pytest.mark.filterwarnings("error::pytest.PytestUnhandledThreadExceptionWarning")]
@@ -38,6 +46,12 @@ def cfg() -> Config:
     return load_config()
 
 
+def vehicle_db() -> cantools.database.can.Database:
+    db = cantools.database.load_file(str(resource_path("vehicle.dbc")))
+    assert isinstance(db, cantools.database.can.Database)
+    return db
+
+
 def write_drive(path: Path, cfg: Config, seconds: float, seed: int = 0) -> dict[str, list[float]]:
     """A recording whose can.log has 50 Hz speed and yaw rate encoded with config/vehicle.dbc.
 
@@ -47,7 +61,7 @@ def write_drive(path: Path, cfg: Config, seconds: float, seed: int = 0) -> dict[
     """
     rng = np.random.default_rng(seed)
     dbc_path = resource_path("vehicle.dbc")
-    db = cantools.database.load_file(str(dbc_path))
+    db = vehicle_db()
     meta = meta_from_config(cfg)
     meta = dataclasses.replace(meta, can=dataclasses.replace(meta.can, dbc=str(dbc_path)))
     speed_msg, yaw_msg = db.get_message_by_name("VEHICLE_SPEED"), db.get_message_by_name("YAW_RATE")
@@ -134,9 +148,9 @@ class Feed:
     """50 Hz speed (36 km/h) and yaw rate (-2.5 deg/s) on vcan0 from the kernel's
     broadcast manager (can-bcm, through python-can's ``send_periodic``)."""
 
-    def __enter__(self) -> Feed:
+    def __enter__(self) -> Self:
         self.bus = can.Bus(interface="socketcan", channel=VEHICLE_BUS)
-        db = cantools.database.load_file(str(resource_path("vehicle.dbc")))
+        db = vehicle_db()
         self.tasks = []
         for name, fields in (("VEHICLE_SPEED", {"SPEED": 36.0}), ("YAW_RATE", {"YAW_RATE": -2.5})):
             msg = db.get_message_by_name(name)

@@ -13,7 +13,6 @@ import shlex
 from pathlib import Path
 
 import pytest
-
 from vcan_vm import VmFailure, VmUnavailable, run_in_vm, suite_command
 from vcan_vm.__main__ import EXIT_SKIP, main
 from vcan_vm.guest import Kernel, pack_initramfs, resolve_modules, stage_initramfs

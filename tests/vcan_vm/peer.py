@@ -17,6 +17,7 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from types import TracebackType
+from typing import Self
 
 import can
 import pytest
@@ -135,7 +136,7 @@ class Candump:
         self._reader.join(timeout=10)
         return parse_candump([ln for ln in self.lines if f"{self.PROBE_ID:03X}#" not in ln])
 
-    def __enter__(self) -> Candump:
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,

@@ -100,8 +100,8 @@ def job_script(command: Sequence[str], cwd: Path, job: Path, env: Mapping[str, s
         "# written by tests.vcan_vm for one guest run",
         f"cd {q(str(cwd))} || {{ echo 'vcan-vm: error: working directory {cwd} not found'; exit 1; }}",
         "echo 'vcan-vm: stage job-start'",
-        f"{{ env -i {exports} {shlex.join(command)} < /dev/null; "
-        f"echo $? > {q(str(job / 'status.tmp'))}; }} 2>&1 | tee {q(str(job / 'output'))}",
+        (f"{{ env -i {exports} {shlex.join(command)} < /dev/null; "
+         f"echo $? > {q(str(job / 'status.tmp'))}; }} 2>&1 | tee {q(str(job / 'output'))}"),
         f"mv {q(str(job / 'status.tmp'))} {q(str(job / 'status'))}",
         "sync",
         "",
@@ -124,8 +124,8 @@ def qemu_command(kernel: Kernel, initrd: Path, job: Path, memory_mb: int, accel:
             "-m", str(memory_mb), "-smp", str(cpus),
             "-nodefaults", "-display", "none", "-serial", "stdio", "-no-reboot",
             "-kernel", str(kernel.image), "-initrd", str(initrd),
-            "-virtfs", "local,path=/,mount_tag=hostroot,security_model=passthrough,"
-                       "id=hostroot,multidevs=remap",
+            "-virtfs", ("local,path=/,mount_tag=hostroot,security_model=passthrough,"
+                        "id=hostroot,multidevs=remap"),
             "-append", f"console=ttyS0 quiet panic=-1 vcanvm.job={job}"]
 
 

@@ -42,10 +42,20 @@ from appliance.recording import Recording, apply_meta
 from appliance.runtime.sensor_sync import SensorSync
 from appliance.runtime.wiring import vehicle_decoder
 from appliance.vision import perception as P
-from appliance.vision.geometry import PinholeCamera, euler_to_matrix, relative_motion, rotation_angle
+from appliance.vision.geometry import (
+    PinholeCamera,
+    euler_to_matrix,
+    relative_motion,
+    rotation_angle,
+)
 from appliance.vision.likelihood import CameraMotion, combine, motion_cues
 from appliance.vision.msac import truncated_loss, weighted_minimal_samples
-from appliance.vision.refinement import MapProblem, correspondence_errors, map_residuals, refine_motion
+from appliance.vision.refinement import (
+    MapProblem,
+    correspondence_errors,
+    map_residuals,
+    refine_motion,
+)
 from drivers.vehicle_signals import FrameDecodeError, SignalKind
 
 MODES = ("direction", "magnitude", "combined")
@@ -103,7 +113,7 @@ class DenseBaseline:
     """DIS dense flow over the whole frame, then the same per-pixel likelihood."""
 
     def __init__(self, camera: PinholeCamera, preset: int) -> None:
-        self.dis = cv2.DISOpticalFlow_create(preset)
+        self.dis = cv2.DISOpticalFlow_create(preset)  # type: ignore[attr-defined]
         u, v = np.meshgrid(np.arange(camera.width, dtype=np.float64), np.arange(camera.height, dtype=np.float64))
         self.grid = np.column_stack([u.ravel(), v.ravel()])
         self.camera = camera
@@ -328,9 +338,10 @@ def main(argv: list[str]) -> int:
             errs.setdefault(key, []).extend(v)
             if "bump" in case.name:
                 bump_errs.setdefault(key, []).extend(v)
-        med = {k: float(np.median(v)) if v else math.nan for k, v in e.items()}
-        rows.append((case.name, "rotation err refined / prior (deg)", f"{med['rot']:.4f} / {med['prior_rot']:.4f}"))
-        rows.append((case.name, "epipole dir err refined / prior (deg)", f"{med['epipole']:.3f} / {med['prior_epipole']:.3f}"))
+        m = {k: float(np.median(v)) if v else math.nan for k, v in e.items()}
+        rows.append((case.name, "rotation err refined / prior (deg)", f"{m['rot']:.4f} / {m['prior_rot']:.4f}"))
+        rows.append((case.name, "epipole dir err refined / prior (deg)",
+                     f"{m['epipole']:.3f} / {m['prior_epipole']:.3f}"))
         for mode in MODES:
             if moving:
                 inside, total, frames = detection_share(case, logs[mode])

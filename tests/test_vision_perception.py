@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
 import pytest
+from test_vision_scene import CAMERA, Box, Scene, box_bbox, pose, render
 
 from appliance.config import Config
 from appliance.messages import EgoMotion, Frame, ParticleSet, ProbabilityMap, SensorSample
@@ -17,7 +19,6 @@ from appliance.vision.perception import (
     perceive,
     static_pool,
 )
-from test_vision_scene import CAMERA, Box, Scene, box_bbox, pose, render
 
 FPS = 30.0
 SPEED = 10.0
@@ -61,7 +62,7 @@ def test_first_frame_gives_the_prior_only_and_no_valid_particles(driven: list) -
 
 def test_refinement_on_images_halves_the_prior_rotation_error(driven: list) -> None:  # type: ignore[type-arg]
     errors, prior_errors, heading = [], [], []
-    for (T0, _, _, _), (T1, ego, _, _) in zip(driven, driven[1:]):
+    for (T0, _, _, _), (T1, ego, _, _) in itertools.pairwise(driven):
         R, t = g.relative_motion(T0, T1)
         errors.append(g.rotation_angle(g.euler_to_matrix(ego.rotation).T @ R))
         prior_errors.append(g.rotation_angle(g.euler_to_matrix(ego.prior_rotation).T @ R))

@@ -162,7 +162,7 @@ def test_render_puts_a_box_where_the_camera_model_projects_it() -> None:
     T = pose(0.0)
     img = render(CAMERA, T, scene)
     u0, v0, u1, v1 = box_bbox(CAMERA, T, scene.boxes[0])
-    assert u1 < 319.5 < 640 and v1 > 239.5 > v0      # left of centre, straddles the horizon
+    assert u1 < CAMERA.cx and v1 > CAMERA.cy > v0      # left of centre, straddles the horizon
     inside = img[int(v0) + 3:int(v1) - 3, int(u0) + 3:int(u1) - 3].astype(float)
     outside = render(CAMERA, T, Scene())[int(v0) + 3:int(v1) - 3, int(u0) + 3:int(u1) - 3]
     assert np.mean(np.abs(inside - outside)) > 10.0

@@ -115,7 +115,7 @@ def next_particles(x_cur: NDArray[np.floating], likelihood: NDArray[np.floating]
     With no valid particle (black frame, all tracks lost) every particle comes from g.
     """
     n = cfg.particles
-    n_imp = int(round(cfg.importance_fraction * n))
+    n_imp = round(cfg.importance_fraction * n)
     w = resampling_weights(likelihood, valid, correction, cfg.weight_floor)
     total = float(w.sum())
     if total <= 0.0:

@@ -85,8 +85,8 @@ def corner_candidates(gray: NDArray[np.uint8], cell_px: int) -> tuple[FloatArray
     ``CORNER_QUALITY`` of the best cell. Returns positions (C, 2) px in the full image
     and their strengths (C,). A flat or black image gives none.
     """
-    half = cv2.pyrDown(gray)
-    eig = cv2.cornerMinEigenVal(half, 3, 3)
+    half = np.asarray(cv2.pyrDown(gray))
+    eig = np.asarray(cv2.cornerMinEigenVal(half, 3, ksize=3))
     c = max(2, cell_px // 2)
     h, w = eig.shape
     nr, nc = h // c, w // c

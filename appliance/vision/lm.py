@@ -29,7 +29,7 @@ LAMBDA_DOWN = 0.1
 
 def _evaluate(residuals: BatchedResiduals, theta: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Residuals r (B, Q), Jacobian J (B, P, Q) and cost (B,) at theta (B, P)."""
-    B, P = theta.shape
+    P = theta.shape[1]
     points = np.repeat(theta[:, None, :], P + 1, axis=1)
     points[:, 1:, :] += np.eye(P) * JACOBIAN_STEP
     r_all = residuals(points)                                   # (B, P + 1, Q)

@@ -42,4 +42,5 @@ def truncated_loss(delta: NDArray[np.floating], threshold: float) -> FloatArray:
     """
     d2 = np.asarray(delta, dtype=np.float64) ** 2
     d2 = np.where(np.isfinite(d2), d2, np.inf)
-    return np.sum(np.minimum(d2, threshold * threshold), axis=-1)
+    loss: FloatArray = np.sum(np.minimum(d2, threshold * threshold), axis=-1)
+    return loss

@@ -82,7 +82,7 @@ def _gray(frame: Frame, camera: PinholeCamera) -> NDArray[np.uint8]:
     if img.dtype != np.uint8:
         raise FrameFormatError(f"frame {frame.index}: pixels are {img.dtype}, expected 8-bit (uint8)")
     if img.ndim == 3 and img.shape[2] == 3:
-        img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+        img = np.asarray(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), dtype=np.uint8)
     elif img.ndim == 3 and img.shape[2] == 1:
         img = img[:, :, 0]
     if img.ndim != 2 or img.shape != (camera.height, camera.width):

@@ -25,7 +25,6 @@ from appliance.vision.geometry import FloatArray
 from appliance.vision.lm import BatchedResiduals, batched_lm
 from appliance.vision.msac import truncated_loss, weighted_minimal_samples
 
-
 HYPOTHESIS_TOLERANCE = 1e-6   # rad: 1e-6 rad moves a pixel by < 0.001 px, enough to score
 FINAL_TOLERANCE = 1e-9        # rad
 
@@ -59,7 +58,8 @@ class Refinement:
 
 
 def _wrap(a: FloatArray) -> FloatArray:
-    return (a + np.pi) % (2.0 * np.pi) - np.pi
+    wrapped: FloatArray = (a + np.pi) % (2.0 * np.pi) - np.pi
+    return wrapped
 
 
 def correspondence_errors(problem: MapProblem, theta: NDArray[np.floating],
@@ -72,7 +72,8 @@ def correspondence_errors(problem: MapProblem, theta: NDArray[np.floating],
     a, b = rays(x_prev, problem.K), rays(x_cur, problem.K)
     if problem.translating:
         return np.abs(epipolar_distances_rays(theta, a, b, problem.K))
-    return np.linalg.norm(transfer_residuals_rays(theta, a, b, problem.K), axis=-1)
+    norms: FloatArray = np.linalg.norm(transfer_residuals_rays(theta, a, b, problem.K), axis=-1)
+    return norms
 
 
 def map_residuals(problem: MapProblem, x_prev: NDArray[np.floating],

@@ -294,6 +294,23 @@ def test_full_transmit_queue_drops_and_counts_without_blocking() -> None:
         writer.stop()
 
 
+def test_writer_reopens_a_bus_that_vanished() -> None:
+    name = channel_name()
+    factory = RecordingFactory()
+    codec = hmi_codec()
+    with can.Bus(interface="virtual", channel=name) as hmi, \
+            HmiCanWriter(codec, interface="virtual", channel=name, period_s=0.02,
+                         reopen_min_s=0.02, reopen_max_s=0.05, bus_factory=factory) as writer:
+        assert writer.wait_stats(lambda st: st.sent >= 2, WAIT)
+        factory.buses[0].shutdown()                 # the interface goes away under the writer
+        assert writer.wait_stats(lambda st: st.bus_lost == 1 and st.opens == 2, WAIT)
+        sent = writer.stats.sent
+        assert writer.wait_stats(lambda st: st.sent >= sent + 2, WAIT)
+        got = collect_hmi(hmi, codec, lambda g: len(g) >= 2)
+        assert all(d.crc_ok for _, d, _ in got) and writer.state is LinkState.OK
+        assert writer.stats.send_errors >= 1
+
+
 # ------------------------------------------------------------------ udp_multicast
 
 

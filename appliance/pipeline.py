@@ -1,0 +1,87 @@
+"""One pipeline step per frame: the only place that strings vision and decision together.
+
+``step(state, frame, sensors, cfg, camera) -> (state, StepOutput, DecisionOutput)`` is pure
+in everything that matters: time comes in with the frame and the sensors, the
+random numbers come from the state's seeded generator, so a replay is
+deterministic and a live run can be reproduced from its recording. Live, replay
+and demo all call this function; only where the frames come from differs.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from appliance.config import Config
+from appliance.decision.decide import DecisionOutput, DecisionState, decide, init_decision_state
+from appliance.messages import Frame, ProbabilityMap, SensorSample, StepOutput
+from appliance.vision.geometry import PinholeCamera
+from appliance.vision.perception import VisionState, init_vision_state, perceive
+
+STAGES = ("vision", "decision", "total")
+
+
+@dataclass(frozen=True)
+class PipelineState:
+    vision: VisionState
+    decision: DecisionState
+    prob_map: ProbabilityMap | None
+    frames: int = 0
+
+
+def camera_from_config(cfg: Config) -> PinholeCamera:
+    c = cfg.camera
+    return PinholeCamera(c.width, c.height, c.fx, c.fy, c.cx, c.cy, tuple(c.distortion))
+
+
+def init_state(cfg: Config, camera: PinholeCamera) -> PipelineState:
+    return PipelineState(
+        vision=init_vision_state(cfg, camera, cfg.runtime.seed),
+        decision=init_decision_state(cfg, camera),
+        prob_map=None,
+    )
+
+
+def check_frame(frame: Frame, camera: PinholeCamera) -> None:
+    """A frame of the wrong size or type is a configuration error, not something to guess around."""
+    img = frame.image
+    if img.ndim != 2 or img.dtype != np.uint8:
+        raise ValueError(f"frame {frame.index}: expected 8-bit gray, got {img.dtype} {img.shape}")
+    if img.shape != (camera.height, camera.width):
+        raise ValueError(
+            f"frame {frame.index} is {img.shape[1]}x{img.shape[0]}, "
+            f"the camera is configured for {camera.width}x{camera.height}"
+        )
+
+
+def step(
+    state: PipelineState,
+    frame: Frame,
+    sensors: SensorSample,
+    cfg: Config,
+    camera: PinholeCamera,
+    clock: Callable[[], float] = time.perf_counter,
+) -> tuple[PipelineState, StepOutput, DecisionOutput]:
+    """Process one frame. ``clock`` only measures stage durations; it never steers the result."""
+    check_frame(frame, camera)
+    t0 = clock()
+    vision, ego, particles = perceive(state.vision, frame, sensors, state.prob_map, cfg, camera)
+    t1 = clock()
+    decision, out = decide(state.decision, frame.index, frame.t, particles, ego, sensors, cfg, camera)
+    t2 = clock()
+    result = StepOutput(
+        frame=frame.index,
+        t=frame.t,
+        ego=ego,
+        particles=particles,
+        tracks=out.tracks,
+        warnings=out.warnings,
+        warning_level=out.warning_level,
+        stage_ms={"vision": (t1 - t0) * 1e3, "decision": (t2 - t1) * 1e3, "total": (t2 - t0) * 1e3},
+    )
+    new_state = PipelineState(vision=vision, decision=decision, prob_map=out.prob_map,
+                              frames=state.frames + 1)
+    return new_state, result, out

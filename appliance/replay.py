@@ -25,9 +25,11 @@ from appliance.config import Config, load_config
 from appliance.messages import Frame, StepOutput
 from appliance.pipeline import camera_from_config, init_state, step
 from appliance.recording import Recording, apply_meta
+from appliance.runtime.health import Faults, Health
 from appliance.runtime.outputs import RunOutputs, timing_stats
 from appliance.runtime.sensor_sync import SensorSync
-from appliance.runtime.wiring import vehicle_decoder
+from appliance.runtime.wiring import hmi_codec, hmi_status, hmi_warning, vehicle_decoder
+from drivers.hmi_can import HmiScheduler
 from drivers.vehicle_signals import FrameDecodeError, SignalKind
 
 # CAN and PTU samples up to this long after a frame's capture time are used for it
@@ -41,6 +43,7 @@ class ReplayResult:
     frames_read: int = 0
     frames_processed: int = 0
     can_frames: int = 0
+    status_changes: list[str] = field(default_factory=list)
     can_errors: dict[str, int] = field(default_factory=dict)
     stage_ms: dict[str, list[float]] = field(default_factory=dict)
     wall_s: float = 0.0
@@ -79,6 +82,9 @@ def replay(
     sync = SensorSync(cfg.vehicle_can.stale_s, max(cfg.vehicle_can.stale_s, 2.0 / cfg.ptu.poll_hz),
                       ptu_present=ptu is not None)
     state = init_state(cfg, camera)
+    hmi = HmiScheduler(hmi_codec(cfg), cfg.hmi_can.period_s)
+    health = Health()
+    fps = _frame_rate(rec)
     result = ReplayResult(stage_ms={"vision": [], "decision": [], "total": [], "end_to_end": []})
     can_it = _Peek(rec.can_messages())
     ptu_i = 0
@@ -102,6 +108,14 @@ def replay(
             sensors = sync.sample(frame.t)
             state, out, decision = step(state, frame, sensors, cfg, camera)
             outputs.write_step(out)
+            # ApplianceStatus as live, except latency: an as-fast-as-possible replay has no
+            # capture-to-output latency, so it reports 0 (summary.json has the timings)
+            faults = Faults(vehicle_can_stale=not sensors.can_valid, ptu=not sensors.ptu_valid)
+            change = health.update(True, faults, fps, 0.0)
+            if change is not None:
+                result.status_changes.append(f"{frame.t:.3f} {change}")
+            outputs.write_can(hmi.update(frame.t, hmi_warning(decision.warning_level, decision.warning_track),
+                                         hmi_status(health.status)))
             c1 = time.perf_counter()
             result.frames_processed += 1
             for k, v in out.stage_ms.items():
@@ -116,6 +130,12 @@ def replay(
     if bar is not None:
         bar.close()
     return result
+
+
+def _frame_rate(rec: Recording) -> float:
+    """Frame rate on the recording clock (1/s)."""
+    t = rec.frame_times
+    return float((len(t) - 1) / (t[-1] - t[0])) if len(t) > 1 and t[-1] > t[0] else 0.0
 
 
 def _feed_can(msg: can.Message, decoder: Any, sync: SensorSync, result: ReplayResult) -> None:
@@ -148,6 +168,7 @@ def summary(result: ReplayResult, cfg: Config) -> dict[str, Any]:
         "replay_frames_per_s": round(result.frames_processed / result.wall_s, 2) if result.wall_s else None,
         "can_frames_read": result.can_frames,
         "can_errors": dict(sorted(result.can_errors.items())),
+        "status_changes": result.status_changes,
         "config_digest": cfg.digest(),
     }
 

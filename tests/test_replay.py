@@ -64,7 +64,19 @@ def test_outputs_follow_the_spec(drive: Path, tmp_path: Path, default_config: Co
                 "version", "config_digest"):
         assert key in s
     assert s["frames_processed"] == 12 and s["processing_ms"]["total"]["median"] > 0
-    assert (out / "warnings.jsonl").exists() and (out / "can_out.log").exists()
+    assert (out / "warnings.jsonl").exists()
+    # ApplianceStatus heartbeat at 10 Hz on the recording clock, counter rolling, CRC right
+    from appliance.runtime.wiring import hmi_codec
+
+    codec = hmi_codec(cfg)
+    sent = list(can.LogReader(str(out / "can_out.log")))
+    status = [m for m in sent if m.arbitration_id == cfg.hmi_can.status_id]
+    assert len(status) >= 3
+    decoded = [codec.decode(m.arbitration_id, bytes(m.data)) for m in status]
+    assert all(d.crc_ok for d in decoded)
+    assert [d.counter for d in decoded] == list(range(len(decoded)))
+    gaps = np.diff([m.timestamp for m in status])
+    assert np.all(gaps >= 0.099) and np.all(gaps < 0.15)
 
 
 def test_two_replays_are_identical(drive: Path, tmp_path: Path, default_config: Config) -> None:

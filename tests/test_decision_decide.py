@@ -47,7 +47,7 @@ def inside(uv: np.ndarray) -> np.ndarray:
 
 def scene(cfg: Config, obj0: tuple[float, float] | None, vel: tuple[float, float], speed: float,
           n_frames: int, size: tuple[float, float, float] = (0.4, 0.6, 1.7), seed: int = 0,
-          hidden: frozenset[int] = frozenset(), n_obj: int = 60) -> Iterator[Step]:
+          hidden: frozenset[int] = frozenset(), n_obj: int = 200) -> Iterator[Step]:
     """World = vehicle frame at t = 0; the ego drives straight along x at ``speed``."""
     rng = np.random.default_rng(seed)
     L, W, H = size
@@ -70,7 +70,10 @@ def scene(cfg: Config, obj0: tuple[float, float] | None, vel: tuple[float, float
             prev = project(cfg, local + o_p, speed * (t - dt))
             ok = np.flatnonzero(inside(cur) & inside(prev))
             sel = rng.choice(ok, min(n_obj, len(ok)), replace=False) if len(ok) else ok
-            pos.append(cur[sel])
+            # like Lucas-Kanade, particles up to half a window (5.5 px) off the object still
+            # measure its motion: a halo around the object
+            halo = rng.uniform(-5.0, 5.0, (len(sel), 2))
+            pos.append(cur[sel] + halo)
             flow.append(cur[sel] - prev[sel])
             w.append(np.clip(rng.normal(0.8, 0.1, len(sel)), 0, 1))
         cur = project(cfg, statics, speed * t)
@@ -193,7 +196,7 @@ def test_box_touching_the_border_falls_back_to_the_scale_cue(default_config: Con
     assert all(d is not None for d in seen)
     s, o = res[-1]
     tr = o.tracks[0]
-    assert tr.bbox[3] >= CAM.height - 1  # cut off by the image border
+    assert tr.bbox[3] >= CAM.height - 8  # cut off by the image border (less the halo)
     assert tr.distance_m is None  # ground contact unknown: say so
     true_ttc = start / walk - s.t
     assert tr.ttc_s is not None and tr.ttc_s == pytest.approx(true_ttc, abs=0.25)

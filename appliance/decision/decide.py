@@ -123,7 +123,7 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
         s = scale_predict(s, dt, cfg.ground.scale_process_std)
     fresh = False
     c = track.cluster
-    if c is not None:
+    if c is not None and track.confirmed:
         if not _touches_border(c, camera, cfg.ground.border_margin_px,
                                cfg.clustering.member_weight):
             u0, _, u1, v1 = c.bbox
@@ -195,7 +195,8 @@ def assess(track: ImageTrack, cues: TrackCues, sensors: SensorSample, cfg: Confi
     ttc: float | None = None
     if g is not None:
         if ground_est is not None:
-            fused = fuse(ground_est, scale_est)
+            # the scale cue only where the ground contact is unreliable (coasting)
+            fused = ground_est if cues.ground_fresh else fuse(ground_est, scale_est)
             ttc = fused[0] if fused is not None else None
     elif scale is not None and scale_est is not None and brg is not None:
         rate = _bearing_rate(cues.bearings)
@@ -238,7 +239,7 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
 
     prob = spatio_temporal_filter(state.prob, particles, ego.rotation, camera, cfg.probability_map)
     clusters = find_clusters(prob, cfg.probability_map.scale, particles, cfg.clustering,
-                             (camera.width, camera.height))
+                             (camera.width, camera.height), halo_px=0.5 * cfg.flow.window_px)
     tracker = track_step(state.tracker, clusters, cfg.tracking, model)
 
     cues: dict[int, TrackCues] = {}

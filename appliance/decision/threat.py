@@ -15,12 +15,14 @@ Two cues, combined per track and frame:
 How they combine (where the ground contact is unreliable: the box touches the
 image border, the contact point is beyond ``max_range_m`` or above the horizon):
 
-1. ground contact reliable this frame and a scale TTC exists -> the
-   corridor test is the ground path's; the TTC is the inverse-variance weighted
-   mean of the ground and the bumper-corrected scale TTC;
+1. ground contact reliable this frame -> the ground path decides the corridor
+   and gives the TTC; the scale cue is not used (on real particle clouds it is
+   much noisier than a good ground contact, and the two disagree exactly when a
+   cluster mixes object and road particles);
 2. no ground contact this frame but a 3-D state updated within ``coast_s``
-   -> the coasted state decides the corridor, and the fusion of 1 applies with
-   the coasted state's grown variance, so the scale cue takes over smoothly;
+   -> the coasted state decides the corridor; the TTC is the inverse-variance
+   weighted mean of the coasted ground TTC and the bumper-corrected scale TTC,
+   so the scale cue takes over smoothly as the coasted variance grows;
 3. no usable 3-D state -> scale cue alone. If the track had a 3-D state in the
    last few seconds, its depth is carried on by the expansion rate (dZ/dt = -k Z)
    and gives the lateral miss from bearing and bearing rate; otherwise the

@@ -81,7 +81,7 @@ def _frames(decoder: VehicleSignalDecoder, speed: dict[str, float],
     msgs = []
     for spec, values in zip(decoder.specs, (speed, yaw)):
         m = decoder.database.get_message_by_name(spec.message)
-        data = m.encode({s.name: 0 for s in m.signals} | values, strict=False)
+        data = m.encode({s.name: 0.0 for s in m.signals} | values, strict=False)
         msgs.append(can.Message(arbitration_id=m.frame_id, is_extended_id=spec.is_extended,
                                 data=data))
     return msgs

@@ -1,1 +1,4 @@
-"""Device drivers: camera, pan-tilt unit, vehicle CAN, HMI CAN. They import nothing from appliance/."""
+"""Device drivers: camera, pan-tilt unit, vehicle CAN, HMI CAN.
+
+They import nothing from ``appliance/``.
+"""

@@ -125,7 +125,8 @@ def available_sources() -> list[str]:
 def create_source(name: str, **params: Any) -> FrameSource:
     """A frame source by registered name; ValueError naming the known ones otherwise."""
     if name not in _REGISTRY:
-        raise ValueError(f"unknown camera source {name!r} (known: {', '.join(available_sources())})")
+        known = ", ".join(available_sources())
+        raise ValueError(f"unknown camera source {name!r} (known: {known})")
     return _REGISTRY[name](**params)
 
 

@@ -140,8 +140,9 @@ class HmiCanWriter:
     # ---------------------------------------------------------------- public
 
     def start(self) -> HmiCanWriter:
-        self._threads = [threading.Thread(target=self._schedule_loop, name="hmi-schedule", daemon=True),
-                         threading.Thread(target=self._send_loop, name="hmi-send", daemon=True)]
+        self._threads = [
+            threading.Thread(target=self._schedule_loop, name="hmi-schedule", daemon=True),
+            threading.Thread(target=self._send_loop, name="hmi-send", daemon=True)]
         for t in self._threads:
             t.start()
         return self
@@ -232,8 +233,8 @@ class HmiCanWriter:
                 except can.CanError as exc:
                     errors += 1
                     self._counts.add("send_errors", error=f"send: {exc}")
-                    if errors >= SEND_ERRORS_BEFORE_REOPEN or isinstance(exc, can.CanOperationError) \
-                            and "closed" in str(exc):
+                    closed = isinstance(exc, can.CanOperationError) and "closed" in str(exc)
+                    if errors >= SEND_ERRORS_BEFORE_REOPEN or closed:
                         self._counts.add("bus_lost", error=f"bus lost: {exc}")
                         self._status.set(LinkState.LOST, str(exc))
                         _shutdown(bus)

@@ -18,6 +18,8 @@ from pathlib import Path
 import can
 import cantools
 from cantools.database.can import Database, Message
+from cantools.database.errors import Error as CantoolsError
+from cantools.database.errors import UnsupportedDatabaseFormatError
 from crccheck.crc import Crc8SaeJ1850
 
 WARNING_NAME = "CollisionWarning"
@@ -84,9 +86,10 @@ class HmiCodec:
                  channel: str | None = None) -> None:
         try:
             db = cantools.database.load_file(str(dbc), database_format="dbc")
-        except (OSError, cantools.database.UnsupportedDatabaseFormatError,
-                cantools.database.Error, UnicodeDecodeError, ValueError) as exc:
-            raise HmiDbcError(f"{dbc}: cannot load DBC: {' '.join(str(exc).split())[:300]}") from None
+        except (OSError, UnsupportedDatabaseFormatError, CantoolsError, UnicodeDecodeError,
+                ValueError) as exc:
+            reason = " ".join(str(exc).split())[:300]
+            raise HmiDbcError(f"{dbc}: cannot load DBC: {reason}") from None
         if not isinstance(db, Database):
             raise HmiDbcError(f"{dbc}: not a CAN database")
         self.warning_msg = _message(db, dbc, WARNING_NAME)
@@ -148,7 +151,7 @@ class HmiCodec:
 
     # ---------------------------------------------------------------- decode (HMI side)
 
-    def decode(self, arbitration_id: int, data: bytes) -> Decoded:
+    def decode(self, arbitration_id: int, data: bytes | bytearray) -> Decoded:
         """Decode a frame of either id (what an HMI does); KeyError for other ids."""
         if arbitration_id == self.warning_id:
             message = self.warning_msg
@@ -156,15 +159,17 @@ class HmiCodec:
             message = self.status_msg
         else:
             raise KeyError(f"0x{arbitration_id:X} is not an HMI frame")
-        raw = message.decode(bytes(data), decode_choices=False, scaling=False)
-        v = message.decode(bytes(data), decode_choices=False, scaling=True)
+        raw = _signals(message.decode(bytes(data), decode_choices=False, scaling=False))
+        v = _signals(message.decode(bytes(data), decode_choices=False, scaling=True))
         crc_ok = len(data) == 8 and crc8_j1850(bytes(data[:7])) == data[7]
         payload: HmiWarning | HmiStatus
         if message is self.warning_msg:
             payload = HmiWarning(
                 level=int(v["Level"]), track_id=int(v["TrackId"]),
-                ttc_s=None if raw["TimeToCollision"] == TTC_UNKNOWN_RAW else float(v["TimeToCollision"]),
-                distance_m=None if raw["Distance"] == DISTANCE_UNKNOWN_RAW else float(v["Distance"]),
+                ttc_s=None if raw["TimeToCollision"] == TTC_UNKNOWN_RAW
+                else float(v["TimeToCollision"]),
+                distance_m=None if raw["Distance"] == DISTANCE_UNKNOWN_RAW
+                else float(v["Distance"]),
                 bearing_rad=math.radians(float(v["Bearing"])))
         else:
             payload = HmiStatus(
@@ -173,6 +178,13 @@ class HmiCodec:
                 fault_ptu=bool(v["FaultPtu"]), fault_overrun=bool(v["FaultOverrun"]),
                 frame_rate_hz=float(v["FrameRate"]), latency_ms=float(v["Latency"]))
         return Decoded(payload, int(raw["Counter"]), crc_ok)
+
+
+def _signals(decoded: object) -> dict[str, float]:
+    """The numeric signal values of a decoded (non-container) message."""
+    if not isinstance(decoded, dict):
+        raise TypeError("HMI messages are not container messages")
+    return {k: float(x) for k, x in decoded.items() if isinstance(x, (int, float))}
 
 
 def _clamp(x: float, lo: float, hi: float, digits: int) -> float:

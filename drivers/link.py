@@ -7,6 +7,7 @@ import logging
 import threading
 import time
 from collections.abc import Callable
+from typing import Any
 
 
 class LinkState(enum.Enum):
@@ -80,7 +81,7 @@ class Counters:
     """
 
     def __init__(self) -> None:
-        self._counts: dict[str, int] = {}
+        self._counts: dict[str, Any] = {}
         self._last_error = ""
         self._cond = threading.Condition()
 
@@ -91,12 +92,12 @@ class Counters:
                 self._last_error = error
             self._cond.notify_all()
 
-    def snapshot(self) -> tuple[dict[str, int], str]:
+    def snapshot(self) -> tuple[dict[str, Any], str]:
         """(counts, last error text)."""
         with self._cond:
             return dict(self._counts), self._last_error
 
-    def wait_for(self, predicate: Callable[[dict[str, int]], bool], timeout: float) -> bool:
+    def wait_for(self, predicate: Callable[[dict[str, Any]], bool], timeout: float) -> bool:
         """Block until ``predicate(counts)`` holds (missing names read as absent) or timeout."""
         deadline = time.monotonic() + timeout
         with self._cond:

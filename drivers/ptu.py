@@ -44,7 +44,12 @@ import serial
 from drivers.backoff import Backoff
 from drivers.link import Counters, LinkState, LinkStatus
 from drivers.ptu_link import (
-    NoReply, PtuCommandError, PtuInitError, PtuLink, UnitReset, handshake,
+    NoReply,
+    PtuCommandError,
+    PtuInitError,
+    PtuLink,
+    UnitReset,
+    handshake,
 )
 from drivers.ptu_protocol import PtuProtocolError, parse_int
 
@@ -346,8 +351,8 @@ class PtuDriver:
             self._last_speed = speed
             for k in "PT":
                 lo, hi = self._speed_bounds[k]
-                steps = min(hi, max(lo, round(speed / self._cal[k].rad_per_step)))
-                self._command(link, f"{k}S", steps, "speed")
+                speed_steps = min(hi, max(lo, round(speed / self._cal[k].rad_per_step)))
+                self._command(link, f"{k}S", speed_steps, "speed")
         if move is not None:
             steps = {k: self._cal[k].to_steps(rad) for k, rad in zip("PT", move)}
             if any(not self._cal[k].lo <= steps[k] <= self._cal[k].hi for k in "PT"):

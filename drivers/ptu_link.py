@@ -20,7 +20,13 @@ import serial
 
 from drivers.link import Counters
 from drivers.ptu_protocol import (
-    PtuProtocolError, Reply, ReplyKind, ReplyParser, encode_command, parse_float, parse_int,
+    PtuProtocolError,
+    Reply,
+    ReplyKind,
+    ReplyParser,
+    encode_command,
+    parse_float,
+    parse_int,
 )
 
 
@@ -105,7 +111,8 @@ class PtuLink:
                 r = self._replies.popleft()
                 if r.kind in (ReplyKind.OK, ReplyKind.ERROR) and skip:
                     skip = False
-                    self.counts.add("stray_replies", error=f"stray reply {r.text!r} awaiting {sent}")
+                    self.counts.add("stray_replies",
+                                    error=f"stray reply {r.text!r} awaiting {sent}")
                 elif r.kind is ReplyKind.OK:
                     return r
                 elif r.kind is ReplyKind.ERROR:

@@ -9,6 +9,7 @@ speed 31..2902 steps/s, base speed 1000 steps/s, acceleration 2000 steps/s^2.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from drivers.ptu_protocol import Command, Reply, ReplyKind, format_reply, parse_token
@@ -146,7 +147,8 @@ class UnitModel:
         if op in ("CI", "CV"):
             self.mode = op
             return ok, 0.0
-        queries = {"E": ("Echoing", lambda: "ON" if self.echo else "OFF"),
+        queries: dict[str, tuple[str, Callable[[], str]]] = {
+                   "E": ("Echoing", lambda: "ON" if self.echo else "OFF"),
                    "F": ("Feedback", lambda: "VERBOSE" if self.verbose else "TERSE"),
                    "L": ("Limits", lambda: "ENABLED" if self.limits else "DISABLED"),
                    "C": ("Control mode", lambda: self.mode),

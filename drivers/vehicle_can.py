@@ -44,7 +44,11 @@ import can
 from drivers.backoff import Backoff
 from drivers.link import Counters, LinkState, LinkStatus
 from drivers.vehicle_signals import (
-    FrameDecodeError, SignalKind, VehicleCanConfigError, VehicleSignal, VehicleSignalDecoder,
+    FrameDecodeError,
+    SignalKind,
+    VehicleCanConfigError,
+    VehicleSignal,
+    VehicleSignalDecoder,
 )
 
 __all__ = ["VehicleCanReader", "VehicleCanStats", "VehicleSignalDecoder", "VehicleSignal",
@@ -113,7 +117,8 @@ class VehicleCanReader:
                  timestamp_clock: str = "wall", bus_kwargs: dict[str, Any] | None = None,
                  bus_factory: BusFactory = open_bus) -> None:
         if timestamp_clock not in ("wall", "monotonic", "receive"):
-            raise ValueError(f"timestamp_clock {timestamp_clock!r} is not wall, monotonic or receive")
+            raise ValueError(
+                f"timestamp_clock {timestamp_clock!r} is not wall, monotonic or receive")
         if not stale_s > 0.0:
             raise ValueError(f"stale_s must be > 0, got {stale_s}")
         self.decoder = decoder

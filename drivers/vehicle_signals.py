@@ -21,6 +21,8 @@ from pathlib import Path
 
 import cantools
 from cantools.database.can import Database, Message
+from cantools.database.errors import Error as CantoolsError
+from cantools.database.errors import UnsupportedDatabaseFormatError
 
 SPEED_UNITS = {"m/s": 1.0, "km/h": 1.0 / 3.6}
 YAW_RATE_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180.0}
@@ -85,7 +87,7 @@ def load_dbc(path: str | Path) -> Database:
         raise VehicleCanConfigError(p, "", "DBC file not found")
     try:
         db = cantools.database.load_file(str(p), database_format="dbc", strict=False)
-    except (cantools.database.UnsupportedDatabaseFormatError, cantools.database.Error,
+    except (UnsupportedDatabaseFormatError, CantoolsError,
             UnicodeDecodeError, ValueError, KeyError, IndexError) as exc:
         reason = " ".join(str(exc).split()) or type(exc).__name__
         raise VehicleCanConfigError(p, "", f"malformed DBC: {reason[:300]}") from None
@@ -135,7 +137,8 @@ class VehicleSignalDecoder:
             raise VehicleCanConfigError(dbc, yaw_rate,
                                         f"yaw rate unit {yaw_rate_unit!r} is not rad/s or deg/s")
         if yaw_rate_sign not in (1, -1):
-            raise VehicleCanConfigError(dbc, yaw_rate, f"yaw rate sign {yaw_rate_sign} is not 1 or -1")
+            raise VehicleCanConfigError(dbc, yaw_rate,
+                                        f"yaw rate sign {yaw_rate_sign} is not 1 or -1")
         self.dbc = str(dbc)
         self._db = load_dbc(dbc)
         self.specs = (
@@ -179,8 +182,10 @@ class VehicleSignalDecoder:
                                    f"{len(data)} bytes, the DBC says {message.length}")
         try:
             values = message.decode(bytes(data), decode_choices=False, scaling=True)
-        except (cantools.database.DecodeError, ValueError, KeyError, IndexError) as exc:
+        except (CantoolsError, ValueError, KeyError, IndexError) as exc:
             raise FrameDecodeError("undecodable", f"{message.name}: {exc}") from None
+        if not isinstance(values, dict):
+            raise FrameDecodeError("undecodable", f"{message.name}: container message")
         out = []
         for spec in specs:
             raw = values.get(spec.signal)

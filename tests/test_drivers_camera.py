@@ -9,8 +9,16 @@ import numpy as np
 import pytest
 
 from drivers.camera import (
-    MAX_BUFFER_AGE_S, CameraFrame, FramePacing, FrameSource, V4L2Camera, available_sources,
-    camera_state, capture_time, create_source, to_gray,
+    MAX_BUFFER_AGE_S,
+    CameraFrame,
+    FramePacing,
+    FrameSource,
+    V4L2Camera,
+    available_sources,
+    camera_state,
+    capture_time,
+    create_source,
+    to_gray,
 )
 from drivers.link import LinkState
 
@@ -100,7 +108,8 @@ def test_size_mismatch_is_counted(video: Path) -> None:
 
 def test_capture_time_uses_a_plausible_buffer_time_only() -> None:
     now = 5000.0
-    assert capture_time(4999.990 * 1000.0, now) == (pytest.approx(4999.99), True)
+    t, from_buffer = capture_time(4999.990 * 1000.0, now)
+    assert t == pytest.approx(4999.99) and from_buffer
     assert capture_time(4999.990 * 1000.0, now, "retrieval") == (now, False)
     assert capture_time(33.3, now) == (now, False)                     # a file position
     assert capture_time((now - MAX_BUFFER_AGE_S - 0.1) * 1000.0, now) == (now, False)

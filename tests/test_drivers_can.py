@@ -20,7 +20,11 @@ from drivers.hmi_can import HmiCanWriter
 from drivers.hmi_codec import HmiCodec, HmiStatus, HmiWarning
 from drivers.link import LinkState
 from drivers.vehicle_can import (
-    SignalKind, VehicleCanConfigError, VehicleCanReader, VehicleSignal, VehicleSignalDecoder,
+    SignalKind,
+    VehicleCanConfigError,
+    VehicleCanReader,
+    VehicleSignal,
+    VehicleSignalDecoder,
 )
 
 CONFIG = Path(__file__).resolve().parents[1] / "config"
@@ -114,7 +118,8 @@ def test_production_dbc_from_opendbc_configured_only_by_names() -> None:
                                    yaw_rate="Yaw_Data_FD1.VehYaw_W_Actl", yaw_rate_unit="rad/s",
                                    yaw_rate_sign=-1)    # Ford: clockwise positive
     db = decoder.database
-    yaw_msg, speed_msg = db.get_message_by_name("Yaw_Data_FD1"), db.get_message_by_name("BrakeSysFeatures")
+    yaw_msg = db.get_message_by_name("Yaw_Data_FD1")
+    speed_msg = db.get_message_by_name("BrakeSysFeatures")
     name = channel_name()
     sink: Handoff[VehicleSignal] = Handoff()
     with can.Bus(interface="virtual", channel=name) as car, \
@@ -152,7 +157,8 @@ def test_reader_decodes_to_si_on_the_monotonic_clock(virtual_channel: tuple[str,
         assert r.wait_state(LinkState.OK, WAIT)
         speed, yaw = sink.snapshot()
         assert (speed.kind, yaw.kind) == (SignalKind.SPEED, SignalKind.YAW_RATE)
-        assert speed.value == pytest.approx(25.0) and yaw.value == pytest.approx(math.radians(-12.5))
+        assert speed.value == pytest.approx(25.0)
+        assert yaw.value == pytest.approx(math.radians(-12.5))
         for v in (speed, yaw):     # wall-clock stamps mapped onto the monotonic clock
             assert t0 - 0.005 <= v.t <= t1 + 0.001
         assert r.latest(SignalKind.SPEED) == speed
@@ -174,14 +180,16 @@ def test_reader_counts_wire_problems_and_never_raises(virtual_channel: tuple[str
         car.send(speed_frame(vehicle_db, 10.0))
         assert r.wait_stats(lambda st: st.frames == 6, WAIT)
         st = r.stats
-        assert (st.wrong_length, st.ignored, st.error_frames, st.decoded, st.bus_off) == (1, 3, 1, 1, 0)
+        counts = (st.wrong_length, st.ignored, st.error_frames, st.decoded, st.bus_off)
+        assert counts == (1, 3, 1, 1, 0)
         car.send(can.Message(arbitration_id=0x040, is_error_frame=True))   # bus-off: reopen
         assert r.wait_stats(lambda st: st.bus_off == 1 and st.opens == 2, WAIT)
         car.send(speed_frame(vehicle_db, 20.0))
         assert sink.wait_for(lambda s: s[-1].value == pytest.approx(20.0 / 3.6), WAIT)
 
 
-def test_stale_signals_are_reported(virtual_channel: tuple[str, can.BusABC], vehicle_db: Any) -> None:
+def test_stale_signals_are_reported(virtual_channel: tuple[str, can.BusABC],
+                                    vehicle_db: Any) -> None:
     name, car = virtual_channel
     sink: Handoff[VehicleSignal] = Handoff()
     with VehicleCanReader(default_decoder(), interface="virtual", channel=name, sink=sink,
@@ -279,8 +287,9 @@ def test_full_transmit_queue_drops_and_counts_without_blocking() -> None:
                           reopen_min_s=0.02, reopen_max_s=0.05, bus_factory=factory).start()
     try:
         for k in range(40):                         # 40 level changes: 40 warnings at once
+            before = writer.stats.updates
             writer.publish(warning=HmiWarning(1 + k % 2, 1))
-            assert writer.wait_stats(lambda st, n=k: st.updates > n, WAIT)
+            assert writer.wait_stats(lambda st: st.updates > before, WAIT)
         st = writer.stats
         assert st.produced >= 40 and st.dropped_queue_full == st.produced - 4
         assert writer.state is LinkState.LOST and st.open_failures >= 1
@@ -316,7 +325,7 @@ def test_writer_reopens_a_bus_that_vanished() -> None:
 
 def test_reader_and_writer_over_udp_multicast(vehicle_db: Any) -> None:
     port = 40000 + os.getpid() % 20000
-    kw = {"port": port}
+    kw: dict[str, Any] = {"port": port}
     group = "239.74.163.9"
     try:
         car = can.Bus(interface="udp_multicast", channel=group, **kw)
@@ -328,7 +337,8 @@ def test_reader_and_writer_over_udp_multicast(vehicle_db: Any) -> None:
     try:
         with VehicleCanReader(default_decoder(), interface="udp_multicast", channel=group,
                               bus_kwargs=kw, sink=sink) as reader, \
-                HmiCanWriter(codec, interface="udp_multicast", channel=group, bus_kwargs=kw) as writer:
+                HmiCanWriter(codec, interface="udp_multicast", channel=group,
+                             bus_kwargs=kw) as writer:
             assert reader.wait_stats(lambda st: st.opens == 1, WAIT)
             assert writer.wait_state(LinkState.OK, WAIT)
             car.send(speed_frame(vehicle_db, 18.0))

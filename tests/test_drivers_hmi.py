@@ -29,8 +29,11 @@ def test_crc8_sae_j1850_check_value() -> None:
 
 def test_warning_unknowns_use_the_dbc_raw_values(codec: HmiCodec) -> None:
     data = codec.encode_warning(HmiWarning(level=1, track_id=7), counter=5)
-    raw = cantools.database.load_file(str(DBC)).get_message_by_name("CollisionWarning").decode(
-        data, decode_choices=False, scaling=False)
+    db = cantools.database.load_file(str(DBC))
+    assert isinstance(db, cantools.database.can.Database)
+    raw = db.get_message_by_name("CollisionWarning").decode(data, decode_choices=False,
+                                                           scaling=False)
+    assert isinstance(raw, dict)
     assert raw["TimeToCollision"] == 0x3FF and raw["Distance"] == 0xFFF
     assert raw["Bearing"] == 0 and raw["Counter"] == 5 and raw["Level"] == 1 and raw["TrackId"] == 7
     assert data[7] == crc8_j1850(data[:7])
@@ -91,7 +94,9 @@ def test_warning_pack_then_parse(codec: HmiCodec, level: int, track: int, ttc: f
        rate=st.floats(0.0, 102.0), latency=st.floats(0.0, 409.0), counter=st.integers(0, 15))
 def test_status_pack_then_parse(codec: HmiCodec, state: int, faults: tuple[bool, ...],
                                 rate: float, latency: float, counter: int) -> None:
-    s = HmiStatus(state, *faults, frame_rate_hz=rate, latency_ms=latency)
+    s = HmiStatus(state, fault_camera=faults[0], fault_vehicle_can_stale=faults[1],
+                  fault_ptu=faults[2], fault_overrun=faults[3], frame_rate_hz=rate,
+                  latency_ms=latency)
     decoded = codec.decode(0x4C1, codec.encode_status(s, counter))
     p = decoded.payload
     assert isinstance(p, HmiStatus) and decoded.crc_ok and decoded.counter == counter
@@ -120,7 +125,8 @@ def run(scheduler: HmiScheduler, times: list[float], warnings: list[HmiWarning],
         status: HmiStatus = HmiStatus(state=1)) -> list[tuple[float, int, bytes]]:
     out = []
     for t, w in zip(times, warnings):
-        out += [(m.timestamp, m.arbitration_id, bytes(m.data)) for m in scheduler.update(t, w, status)]
+        frames = scheduler.update(t, w, status)
+        out += [(m.timestamp, m.arbitration_id, bytes(m.data)) for m in frames]
     return out
 
 
@@ -138,7 +144,8 @@ def test_status_heartbeat_every_period_on_a_fixed_grid(codec: HmiCodec) -> None:
 def test_warning_on_change_and_repeated_while_active(codec: HmiCodec) -> None:
     s = HmiScheduler(codec, 0.1)
     seq = [(0.00, HmiWarning(0)), (0.05, HmiWarning(1, 4, 3.0)), (0.08, HmiWarning(1, 4, 2.9)),
-           (0.14, HmiWarning(1, 4, 2.8)), (0.16, HmiWarning(2, 4, 1.9)), (0.20, HmiWarning(2, 5, 1.8)),
+           (0.14, HmiWarning(1, 4, 2.8)), (0.16, HmiWarning(2, 4, 1.9)),
+           (0.20, HmiWarning(2, 5, 1.8)),
            (0.31, HmiWarning(2, 5, 1.7)), (0.33, HmiWarning(0)), (0.50, HmiWarning(0))]
     got = []
     for t, w in seq:

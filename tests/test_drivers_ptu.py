@@ -40,6 +40,10 @@ def make_driver(port: str, sink: Handoff[PtuSample], **kw: Any) -> PtuDriver:
     return PtuDriver(port, **params).start()
 
 
+def at(sample: PtuSample, expected: tuple[float, float]) -> bool:
+    return (sample.pan_rad, sample.tilt_rad) == pytest.approx(expected, abs=1e-12)
+
+
 def samples_after(sink: Handoff[PtuSample], n: int) -> list[PtuSample]:
     assert sink.wait_for(lambda items: len(items) >= n, WAIT), f"fewer than {n} samples"
     return sink.snapshot()
@@ -53,7 +57,8 @@ def test_axis_calibration_round_trip_with_sign_and_offset() -> None:
         assert cal.to_steps(cal.to_rad(steps)) == steps
     assert cal.to_steps(0.1 - 10.4 * RAD_PER_STEP) == 10    # rounds, does not truncate
     lo, hi = cal.limits_rad()
-    assert lo == pytest.approx(0.1 - 604 * RAD_PER_STEP) and hi == pytest.approx(0.1 + 907 * RAD_PER_STEP)
+    assert lo == pytest.approx(0.1 - 604 * RAD_PER_STEP)
+    assert hi == pytest.approx(0.1 + 907 * RAD_PER_STEP)
 
 
 def test_handshake_poll_and_move(sim: PtuSimulator) -> None:
@@ -65,15 +70,14 @@ def test_handshake_poll_and_move(sim: PtuSimulator) -> None:
         assert list(sim.received)[:4] == ["ED", "FT", "CI", "I"]
         limits = drv.limits_rad
         assert limits is not None
-        assert limits[0] == pytest.approx((PAN_LIMITS[0] * RAD_PER_STEP, PAN_LIMITS[1] * RAD_PER_STEP))
-        assert limits[1] == pytest.approx((TILT_LIMITS[0] * RAD_PER_STEP, TILT_LIMITS[1] * RAD_PER_STEP))
+        assert limits[0] == pytest.approx(tuple(s * RAD_PER_STEP for s in PAN_LIMITS))
+        assert limits[1] == pytest.approx(tuple(s * RAD_PER_STEP for s in TILT_LIMITS))
         first = samples_after(sink, 1)[0]
         assert (first.pan_rad, first.tilt_rad) == (0.0, 0.0)
         drv.move_to(0.3, -0.1)
         target = (round(0.3 / RAD_PER_STEP), round(-0.1 / RAD_PER_STEP))
         expected = (target[0] * RAD_PER_STEP, target[1] * RAD_PER_STEP)
-        assert sink.wait_for(lambda s: (s[-1].pan_rad, s[-1].tilt_rad) == pytest.approx(expected,
-                                                                                      abs=1e-12), WAIT)
+        assert sink.wait_for(lambda s: at(s[-1], expected), WAIT)
         assert tuple(round(p) for p in sim.position_steps()) == target
         assert f"PP{target[0]}" in sim.received and f"TP{target[1]}" in sim.received
         ts = [s.t for s in sink.snapshot()]
@@ -94,8 +98,7 @@ def test_signs_and_offsets_map_to_the_spec_convention(sim: PtuSimulator) -> None
         drv.move_to(0.25, 0.1)
         target = (round(-0.2 / RAD_PER_STEP), round(-0.1 / RAD_PER_STEP))
         expected = (0.05 - target[0] * RAD_PER_STEP, -target[1] * RAD_PER_STEP)
-        assert sink.wait_for(lambda s: (s[-1].pan_rad, s[-1].tilt_rad) == pytest.approx(expected,
-                                                                                      abs=1e-12), WAIT)
+        assert sink.wait_for(lambda s: at(s[-1], expected), WAIT)
         assert tuple(round(p) for p in sim.position_steps()) == target
         assert target[0] < 0 and target[1] < 0
     finally:

@@ -9,8 +9,19 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from drivers.ptu_protocol import (
-    MAX_LINE, Command, CommandParser, PtuProtocolError, Reply, ReplyKind, ReplyParser,
-    classify_line, encode_command, format_reply, parse_float, parse_int, parse_token,
+    MAX_LINE,
+    Command,
+    CommandParser,
+    PtuProtocolError,
+    Reply,
+    ReplyKind,
+    ReplyParser,
+    classify_line,
+    encode_command,
+    format_reply,
+    parse_float,
+    parse_int,
+    parse_token,
 )
 from drivers.ptu_unit import ACCEL, PAN_LIMITS, SPEED_BOUNDS, UnitModel, advance
 
@@ -41,7 +52,8 @@ def test_encode_command() -> None:
     (b"PP * 100", [Reply(ECHO, "PP"), Reply(OK, "100")]),
     (b"pp1000 *", [Reply(ECHO, "PP1000"), Reply(OK, "")]),
     (b"TO100", [Reply(ECHO, "TO100")]),
-    (b"PP * Current Pan position is 0", [Reply(ECHO, "PP"), Reply(OK, "Current Pan position is 0")]),
+    (b"PP * Current Pan position is 0",
+     [Reply(ECHO, "PP"), Reply(OK, "Current Pan position is 0")]),
     (b"### PAN-TILT CONTROLLER", [Reply(BANNER, "### PAN-TILT CONTROLLER")]),
     (b"Initializing...", [Reply(BANNER, "Initializing...")]),
     (b"\xff\xfe* 100", [Reply(GARBAGE, repr(b"\xff\xfe* 100"))]),
@@ -111,8 +123,8 @@ def test_reply_round_trip_survives_a_garbage_line(value: int, echo: str | None,
 
 def test_command_parser_tokens() -> None:
     p = CommandParser()
-    assert p.feed(b"PP TP-907\rps1000\nE") == [Command("PP", None, "PP"), Command("TP", -907, "TP-907"),
-                                               Command("PS", 1000, "ps1000")]
+    assert p.feed(b"PP TP-907\rps1000\nE") == [
+        Command("PP", None, "PP"), Command("TP", -907, "TP-907"), Command("PS", 1000, "ps1000")]
     assert p.feed(b"D ") == [Command("ED", None, "ED")]
     assert parse_token(b"P!1") == Command("", None, "P!1")
     assert not parse_token(b"XYZ").known

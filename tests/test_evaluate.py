@@ -169,3 +169,24 @@ def test_cli_prints_the_table(tmp_path: Path, default_config: Config,
     assert cli_main(["evaluate", str(rec), str(run)]) == 0
     out = capsys.readouterr().out
     assert "hand_made_collision" in out and "1.13" in out and "FAIL" in out
+
+
+def test_collision_object_from_truth_wins_over_geometry(default_config: Config) -> None:
+    import numpy as np
+
+    from appliance.evaluation.metrics import evaluate
+    from appliance.evaluation.runfiles import parse_truth
+
+    data = truth(True)
+    near = json.loads(json.dumps(data["objects"][0]))  # type: ignore[index]
+    near["id"] = 3
+    data["objects"] = [near, *data["objects"]]  # type: ignore[misc]
+    far = data["objects"][1]  # type: ignore[index]
+    for rec in far["frames"].values():
+        rec["pos_vehicle"][1] = 20.0
+    times = T0 + np.arange(N) / FPS
+    assert evaluate(parse_truth(data, "t"), [], [], times, (320, 240),
+                    default_config.mount)["colliding_object"] == 3
+    data["collision_object"] = 1
+    assert evaluate(parse_truth(data, "t"), [], [], times, (320, 240),
+                    default_config.mount)["colliding_object"] == 1

@@ -12,8 +12,8 @@ Definitions (where the issue is silent, what a validation engineer expects):
 * **Attribution:** a track id belongs to the object it matched in most frames
   (at least 3); a track that never matched a mover is a track on a static object
   or on nothing.
-* **Colliding object:** the mover whose truth position is closest to the ego
-  outline at ``collision_t``.
+* **Colliding object:** ``collision_object`` of the truth when given, else the
+  mover whose truth position is closest to the ego outline at ``collision_t``.
 * **Lead time:** ``collision_t`` minus the first level-2 event on the colliding
   object (its track attributed to it, or its box matching it) at or before
   ``collision_t``; null when there was none (a missed warning).
@@ -146,7 +146,10 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
 
     l2_onsets, l1_onsets = _onsets(warnings)
     ct = truth.collision_t if truth.collision else None
-    colliding = _colliding_object(movers, ct, frame_times, mount) if ct is not None else None
+    colliding = None
+    if ct is not None:
+        named = [o for o in movers if o.id == truth.collision_object]
+        colliding = named[0] if named else _colliding_object(movers, ct, frame_times, mount)
 
     def on_object(w: WarningRow, o: TruthObject) -> bool:
         if w.track is not None and owner.get(w.track) == o.id:

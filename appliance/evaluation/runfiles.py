@@ -68,6 +68,7 @@ class Truth:
     collision: bool
     collision_t: float | None
     objects: tuple[TruthObject, ...]
+    collision_object: int | None = None  # optional: the id of the colliding object
 
 
 def _num(v: Any, where: str, key: str, *, optional: bool = True) -> float | None:
@@ -175,5 +176,8 @@ def parse_truth(data: dict[str, Any], where: str) -> Truth:
         objects.append(TruthObject(id=int(obj.get("id", k)), cls=str(obj.get("class", "object")),
                                    moving=bool(obj.get("moving", True)), frames=frames, bbox=bbox,
                                    visible=visible, pos=pos))
+    co = data.get("collision_object")
     return Truth(scenario=str(data.get("scenario", "?")), collision=collision, collision_t=ct,
-                 objects=tuple(objects))
+                 objects=tuple(objects),
+                 collision_object=int(co) if isinstance(co, int) and not isinstance(co, bool)
+                 else None)

@@ -1,0 +1,82 @@
+"""The texture bank of one drive and the skins (per-face textures) of its boxes."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from appliance.sim import textures as tx
+from appliance.sim.world import BoxSkin
+
+N_FACADES = 6
+N_CAR_SKINS = 8
+N_PEOPLE = 4
+
+
+@dataclass
+class TextureBank:
+    """All textures of a drive, generated from one seed; faces refer to them by index."""
+
+    textures: list[tx.Texture] = field(default_factory=list)
+    index: dict[str, int] = field(default_factory=dict)
+
+    def add(self, texture: tx.Texture) -> int:
+        self.index[texture.name] = len(self.textures)
+        self.textures.append(texture)
+        return self.index[texture.name]
+
+    def __getitem__(self, name: str) -> int:
+        return self.index[name]
+
+    @staticmethod
+    def generate(rng: np.random.Generator) -> TextureBank:
+        bank = TextureBank()
+        bank.add(tx.asphalt(rng))
+        bank.add(tx.paving(rng))
+        bank.add(tx.kerb(rng))
+        bank.add(tx.roof(rng))
+        for k in range(N_FACADES):
+            bank.add(tx.facade(rng, k))
+        for k in range(N_CAR_SKINS):
+            body = float(rng.uniform(40, 220))
+            bank.add(tx.make_texture(f"car_side{k}", tx.car_side(rng, body), False))
+            bank.add(tx.make_texture(f"car_front{k}", tx.car_end(rng, body, True), False))
+            bank.add(tx.make_texture(f"car_rear{k}", tx.car_end(rng, body, False), False))
+        for k in range(N_PEOPLE):
+            sub = np.random.default_rng(rng.integers(2**63))
+            bank.add(tx.make_texture(f"ped_front{k}", tx.pedestrian(sub, False), False))
+            sub = np.random.default_rng(rng.integers(2**63))
+            bank.add(tx.make_texture(f"ped_side{k}", tx.pedestrian(sub, True), False))
+        for k in range(2):
+            bank.add(tx.make_texture(f"cyc_side{k}", tx.cyclist(rng, True), False))
+            bank.add(tx.make_texture(f"cyc_front{k}", tx.cyclist(rng, False), False))
+        bank.add(tx.make_texture("pole", tx.pole(rng), False))
+        bank.add(tx.make_texture("sign", tx.sign(rng), False))
+        return bank
+
+    # ------------------------------------------------------------ skins
+
+    def car_skin(self, k: int) -> BoxSkin:
+        k %= N_CAR_SKINS
+        side = self[f"car_side{k}"]
+        return BoxSkin(self[f"car_front{k}"], self[f"car_rear{k}"], side, side, self["roof"])
+
+    def person_skin(self, k: int) -> BoxSkin:
+        k %= N_PEOPLE
+        front, side = self[f"ped_front{k}"], self[f"ped_side{k}"]
+        return BoxSkin(front, front, side, side, side)
+
+    def cyclist_skin(self, k: int) -> BoxSkin:
+        k %= 2
+        front, side = self[f"cyc_front{k}"], self[f"cyc_side{k}"]
+        return BoxSkin(front, front, side, side, front)
+
+    def skin(self, kind: str, k: int) -> BoxSkin:
+        if kind == "car":
+            return self.car_skin(k)
+        if kind == "pedestrian":
+            return self.person_skin(k)
+        if kind == "cyclist":
+            return self.cyclist_skin(k)
+        raise ValueError(f"unknown mover class {kind!r}")

@@ -1,0 +1,348 @@
+"""Rasteriser: textured planar faces through the pinhole camera, with an object-id buffer.
+
+Each visible face is clipped in 3-D against the near plane and cut into depth
+slabs (geometric steps in camera depth); each slab is drawn with one
+``cv2.warpPerspective`` of the homography texture -> image into the slab's
+bounding rectangle only, masked by its polygon. The texture level (rip-map,
+see :mod:`appliance.sim.textures`) is chosen per slab from the size of one
+image pixel in texels along each texture axis, so distant and grazing surfaces
+are pre-filtered instead of aliasing.
+
+Drawing order: road-level layers first (ground, raised surfaces, markings) in
+that order, then upright faces front to back with a per-pixel inverse-depth
+test. ``1/z`` is affine in the pixel coordinates over a plane, so the test costs
+one ``addWeighted`` per slab; it makes occlusion exact where a painter's order
+by distance fails (a long facade behind a parked car, a mover between two
+cars). The id buffer records which object each pixel shows (0 = road, sky).
+
+Pixel coordinates follow the camera model: integer values are pixel centres.
+Images are rendered on the ideal pinhole and remapped once when the camera has
+lens distortion.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import bisect
+import math
+from typing import NamedTuple
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from appliance.sim.textures import Texture
+from appliance.sim.world import FLAT, FaceSet, Layer
+from appliance.vision.geometry import PinholeCamera
+
+FloatArray = NDArray[np.float64]
+Point = tuple[float, float, float]
+_SUB = 16  # fillPoly sub-pixel factor (shift = 4 bits)
+TINY_PX = 48  # slabs whose bounding box is at most this many pixels get the texture's mean
+
+
+class _Job(NamedTuple):
+    """One visible face in camera coordinates (plain floats: the per-face loop is Python)."""
+
+    corners: list[list[float]]
+    n_c: list[float]
+    o_c: list[float]
+    eu_c: list[float]
+    ev_c: list[float]
+    texel: list[float]
+    texture: int
+    obj: int
+    value: float
+    layer: int
+    key: float
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    """near_m/far_m: clip distances (camera depth, m); fog ramps from fog_start_m to far_m
+    towards ``haze``; slab_ratio: depth ratio of the slabs (finer, fog_slab_ratio, in the fog);
+    lod_bias: level = floor(log2(texels per pixel) + lod_bias)."""
+
+    near_m: float = 0.3
+    far_m: float = 160.0
+    fog_start_m: float = 90.0
+    slab_ratio: float = 1.41
+    fog_slab_ratio: float = 1.12
+    haze: float = 178.0
+    lod_bias: float = 0.5
+    ground_extent_m: float = 250.0
+
+
+def _clip(poly: list[Point], zc: float, keep_above: bool) -> list[Point]:
+    """Sutherland-Hodgman: the part of a convex polygon with z >= zc (or <= zc)."""
+    out: list[Point] = []
+    n = len(poly)
+    sgn = 1.0 if keep_above else -1.0
+    for i in range(n):
+        a, b = poly[i], poly[(i + 1) % n]
+        da, db = sgn * (a[2] - zc), sgn * (b[2] - zc)
+        if da >= 0.0:
+            out.append(a)
+        if (da >= 0.0) != (db >= 0.0):
+            s = da / (da - db)
+            out.append((a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1]), a[2] + s * (b[2] - a[2])))
+    return out
+
+
+class Renderer:
+    """Renders frames of one camera; holds the reusable buffers (not thread-safe)."""
+
+    def __init__(self, camera: PinholeCamera, textures: Sequence[Texture], ground_texture: int,
+                 settings: RenderSettings | None = None) -> None:
+        self.camera = camera
+        self.textures = list(textures)
+        self.ground_texture = ground_texture
+        self.s = settings or RenderSettings()
+        W, H = camera.width, camera.height
+        self.W, self.H = W, H
+        self.K = camera.K
+        rows = np.arange(H, dtype=np.float32)[:, None]
+        self.sky = np.repeat(np.clip(212.0 - 30.0 * rows / H, 0, 255).astype(np.uint8), W, axis=1)
+        self.col_grid = np.ascontiguousarray(np.broadcast_to(np.arange(W, dtype=np.float32), (H, W)))
+        self.row_grid = np.ascontiguousarray(np.broadcast_to(rows, (H, W)))
+        self.zbuf = np.zeros((H, W), np.float32)
+        self.slab_z = self._slab_boundaries()
+        self._slab_list = self.slab_z.tolist()
+        self._k = (camera.fx, camera.fy, camera.cx, camera.cy)
+        self._mean = {i: float(tex.levels[-1][-1].mean()) for i, tex in enumerate(self.textures)}
+        self._maps: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None
+        if camera.has_distortion:
+            grid = np.stack(np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64)),
+                            axis=-1).reshape(-1, 2)
+            ideal = camera.undistort(grid).reshape(H, W, 2).astype(np.float32)
+            self._maps = (np.ascontiguousarray(ideal[..., 0]), np.ascontiguousarray(ideal[..., 1]))
+
+    def _slab_boundaries(self) -> FloatArray:
+        s = self.s
+        z = [s.near_m]
+        while z[-1] * s.slab_ratio < s.fog_start_m:
+            z.append(z[-1] * s.slab_ratio)
+        z.append(s.fog_start_m)
+        while z[-1] * s.fog_slab_ratio < s.far_m:
+            z.append(z[-1] * s.fog_slab_ratio)
+        z.append(s.far_m)
+        return np.array(z)
+
+    # ------------------------------------------------------------ per frame
+
+    def render(self, camera_from_world: FloatArray, face_sets: Sequence[FaceSet]
+               ) -> tuple[NDArray[np.uint8], NDArray[np.uint16]]:
+        """Image (H, W) uint8 and object ids (H, W) uint16 seen by a camera at this pose.
+
+        ``camera_from_world`` is the 4x4 inverse of the camera pose.
+        """
+        R = np.asarray(camera_from_world[:3, :3], float)
+        t = np.asarray(camera_from_world[:3, 3], float)
+        img = self.sky.copy()
+        ids = np.zeros((self.H, self.W), np.uint16)
+        self.zbuf.fill(0.0)
+        jobs = self._ground_jobs(img, R, t)
+        for fs in face_sets:
+            if len(fs):
+                jobs += self._jobs(fs, R, t)
+        # road layers back to front (painter's order), upright faces front to back (the depth
+        # test then skips the warps of hidden faces)
+        jobs.sort(key=lambda j: (j.layer, j.key))
+        for job in jobs:
+            self._draw_face(img, ids, job)
+        if self._maps is not None:
+            img = cv2.remap(img, self._maps[0], self._maps[1], cv2.INTER_LINEAR,
+                            borderMode=cv2.BORDER_REPLICATE)
+            ids = cv2.remap(ids, self._maps[0], self._maps[1], cv2.INTER_NEAREST,
+                            borderMode=cv2.BORDER_REPLICATE)
+        return img, ids
+
+    def _jobs(self, fs: FaceSet, R: FloatArray, t: FloatArray) -> list[_Job]:
+        """Frustum and back-face culling (vectorised); the visible faces in camera coordinates."""
+        cam = self.camera
+        Pc = fs.corners @ R.T + t
+        x, y, z = Pc[..., 0], Pc[..., 1], Pc[..., 2]
+        m = 2.0
+        out = (z < self.s.near_m).all(1) | (z > self.s.far_m).all(1)
+        out |= (cam.fx * x + (cam.cx + m) * z < 0).all(1)
+        out |= (cam.fx * x - (self.W - 1 - cam.cx + m) * z > 0).all(1)
+        out |= (cam.fy * y + (cam.cy + m) * z < 0).all(1)
+        out |= (cam.fy * y - (self.H - 1 - cam.cy + m) * z > 0).all(1)
+        n_c = fs.normal @ R.T
+        facing = np.einsum("ij,ij->i", n_c, Pc[:, 0, :]) < 0
+        idx = np.flatnonzero(~out & (facing | fs.two_sided))
+        if len(idx) == 0:
+            return []
+        upright = fs.layer[idx] == Layer.UPRIGHT
+        key = np.where(upright, z[idx].min(1), -z[idx].max(1))
+        o_c = fs.origin[idx] @ R.T + t
+        eu_c, ev_c = fs.eu[idx] @ R.T, fs.ev[idx] @ R.T
+        cols = zip(Pc[idx].tolist(), n_c[idx].tolist(), o_c.tolist(), eu_c.tolist(), ev_c.tolist(),
+                   fs.texel[idx].tolist(), fs.texture[idx].tolist(), fs.obj[idx].tolist(),
+                   fs.value[idx].tolist(), fs.layer[idx].tolist(), key.tolist())
+        return [_Job(*c) for c in cols]
+
+    def _ground_jobs(self, img: NDArray[np.uint8], R: FloatArray, t: FloatArray) -> list[_Job]:
+        """Draws the haze beyond the far plane; returns the road plane (z = 0) around the camera."""
+        cam_w = -R.T @ t
+        cx, cy = float(cam_w[0]), float(cam_w[1])
+        s = self.s
+        far = 20.0 * s.far_m
+        quad = np.array([[cx - far, cy - far, 0], [cx + far, cy - far, 0], [cx + far, cy + far, 0],
+                         [cx - far, cy + far, 0]], float) @ R.T + t
+        poly = _clip([tuple(p) for p in quad.tolist()], s.far_m * 0.95, True)
+        if len(poly) >= 3:
+            cv2.fillPoly(img, [self._pts(poly)[0]], int(s.haze), cv2.LINE_8, 4)
+        e = s.ground_extent_m
+        corners = np.array([[cx - e, cy - e, 0], [cx + e, cy - e, 0], [cx + e, cy + e, 0],
+                            [cx - e, cy + e, 0]], float)
+        tex = self.textures[self.ground_texture]
+        ground = FaceSet(corners[None], np.array([[0, 0, 1.0]]), np.zeros((1, 3)),
+                         np.array([[1.0, 0, 0]]), np.array([[0, 1.0, 0]]), np.array([tex.texel_m]),
+                         np.array([self.ground_texture]), np.array([int(Layer.GROUND)]),
+                         np.array([0]), np.array([0.0]), np.array([False]))
+        return self._jobs(ground, R, t)
+
+    def _pts(self, poly: Sequence[Point], x0: int = 0, y0: int = 0
+             ) -> tuple[NDArray[np.int32], tuple[float, float, float, float]]:
+        """fillPoly vertices (sub-pixel, relative to (x0, y0)) and the pixel bounds of a polygon."""
+        fx, fy, cx, cy = self._k
+        u = [fx * p[0] / p[2] + cx for p in poly]
+        v = [fy * p[1] / p[2] + cy for p in poly]
+        pts = np.rint(np.array([u, v]).T * _SUB - (x0 * _SUB, y0 * _SUB)).astype(np.int32)
+        return pts, (min(u), min(v), max(u), max(v))
+
+    def _draw_face(self, img: NDArray[np.uint8], ids: NDArray[np.uint16], job: _Job) -> None:
+        s = self.s
+        poly: list[Point] = [tuple(p) for p in job.corners]  # type: ignore[misc]
+        zs = [p[2] for p in poly]
+        zmin, zmax = min(zs), max(zs)
+        if zmin < s.near_m:
+            poly = _clip(poly, s.near_m, True)
+            zmin = s.near_m
+        if zmax > s.far_m:
+            poly = _clip(poly, s.far_m, False)
+            zmax = s.far_m
+        if len(poly) < 3:
+            return
+        if job.texture == FLAT:  # markings and kerbs: one anti-aliased polygon
+            fog = self._fog(0.5 * (zmin + zmax))
+            val = (1.0 - fog) * job.value + fog * s.haze
+            cv2.fillPoly(img, [self._pts(poly)[0]], int(round(val)), cv2.LINE_AA, 4)
+            return
+        k0 = max(bisect.bisect_right(self._slab_list, zmin) - 1, 0)
+        k1 = bisect.bisect_left(self._slab_list, zmax)
+        bounds = self._slab_list[k0:k1 + 1]
+        if len(bounds) < 2:
+            bounds = [zmin, zmax]
+        bounds[0], bounds[-1] = zmin, zmax
+        if len(bounds) > 2 and bounds[-1] / bounds[-2] < 1.08:  # merge slivers into their neighbours
+            del bounds[-2]
+        if len(bounds) > 2 and bounds[1] / bounds[0] < 1.08:
+            del bounds[1]
+        for j in range(len(bounds) - 1):
+            slab = poly
+            if j > 0:
+                slab = _clip(slab, bounds[j], True)
+            if j < len(bounds) - 2:
+                slab = _clip(slab, bounds[j + 1], False)
+            if len(slab) >= 3:
+                self._draw_slab(img, ids, job, slab, (bounds[j] * bounds[j + 1]) ** 0.5)
+
+    def _fog(self, z: float) -> float:
+        s = self.s
+        return min(max((z - s.fog_start_m) / (s.far_m - s.fog_start_m), 0.0), 1.0)
+
+    def _draw_slab(self, img: NDArray[np.uint8], ids: NDArray[np.uint16], job: _Job, slab: list[Point],
+                   z_rep: float) -> None:
+        s = self.s
+        pts, (umin, vmin, umax, vmax) = self._pts(slab)
+        x0, y0 = max(int(umin), 0), max(int(vmin), 0)
+        x1, y1 = min(int(umax) + 2, self.W), min(int(vmax) + 2, self.H)
+        if x1 <= x0 or y1 <= y0:
+            return
+        w, h = x1 - x0, y1 - y0
+        fog = self._fog(z_rep)
+        depth_test = job.layer == Layer.UPRIGHT
+        pts -= np.array([x0 * _SUB, y0 * _SUB], np.int32)
+        if w * h <= TINY_PX and not depth_test:  # a few pixels: the texture's mean is all one sees
+            val = (1.0 - fog) * self._mean[job.texture] + fog * s.haze
+            cv2.fillPoly(img[y0:y1, x0:x1], [pts], int(round(val)), cv2.LINE_8, 4)
+            return
+        mask = np.zeros((h, w), np.uint8)
+        cv2.fillPoly(mask, [pts], 1, cv2.LINE_8, 4)
+        invz = None
+        if depth_test:
+            nx, ny, nz = job.n_c
+            d = nx * job.o_c[0] + ny * job.o_c[1] + nz * job.o_c[2]
+            if abs(d) < 1e-9:
+                return
+            fx, fy, cx, cy = self._k
+            a, b = nx / (fx * d), ny / (fy * d)
+            c = (nx * (x0 - cx) / fx + ny * (y0 - cy) / fy + nz) / d
+            invz = cv2.addWeighted(self.col_grid[:h, :w], a, self.row_grid[:h, :w], b, c)
+            closer = cv2.compare(invz, self.zbuf[y0:y1, x0:x1], cv2.CMP_GT)
+            cv2.bitwise_and(mask, closer, dst=mask)
+            if not cv2.countNonZero(mask):
+                return
+        if w * h <= TINY_PX:
+            warped = np.full((h, w), int(round((1.0 - fog) * self._mean[job.texture] + fog * s.haze)),
+                             np.uint8)
+        else:
+            warped = self._warp(job, slab, x0, y0, w, h)
+            if fog > 0.0:
+                warped = cv2.addWeighted(warped, 1.0 - fog, warped, 0.0, fog * s.haze)
+        cv2.copyTo(warped, mask, img[y0:y1, x0:x1])
+        if invz is not None:
+            cv2.copyTo(invz, mask, self.zbuf[y0:y1, x0:x1])
+            ids[y0:y1, x0:x1][mask.view(bool)] = job.obj
+
+    def _warp(self, job: _Job, slab: list[Point], x0: int, y0: int, w: int, h: int) -> NDArray[np.uint8]:
+        """The face's texture warped into the ROI (x0, y0, w, h) at the level this slab needs."""
+        tex = self.textures[job.texture]
+        su, sv = job.texel
+        th, tw = tex.shape
+        n = len(slab)
+        C = [sum(p[k] for p in slab) / n for k in range(3)]
+        o = list(job.o_c)
+        eu, ev = job.eu_c, job.ev_c
+        rel = [C[k] - o[k] for k in range(3)]
+        a = (rel[0] * eu[0] + rel[1] * eu[1] + rel[2] * eu[2]) / su
+        b = (rel[0] * ev[0] + rel[1] * ev[1] + rel[2] * ev[2]) / sv
+        if tex.wrap:  # shift the origin by whole periods so texture coordinates stay small
+            ku, kv = math.floor(a / tw), math.floor(b / th)
+            o = [o[k] + ku * tw * su * eu[k] + kv * th * sv * ev[k] for k in range(3)]
+            a, b = a - ku * tw, b - kv * th
+        fx, fy, cx, cy = self._k
+        # camera-frame point of texel (a, b): X = o + a su eu + b sv ev; image = K X (homography H0)
+        Xa = [su * eu[k] for k in range(3)]
+        Xb = [sv * ev[k] for k in range(3)]
+        X = [o[k] + a * Xa[k] + b * Xb[k] for k in range(3)]
+        u, v = fx * X[0] / X[2] + cx, fy * X[1] / X[2] + cy
+        # Jacobian d(u, v)/d(a, b) of the projection at the slab centre
+        j00 = (fx * Xa[0] + cx * Xa[2] - u * Xa[2]) / X[2]
+        j01 = (fx * Xb[0] + cx * Xb[2] - u * Xb[2]) / X[2]
+        j10 = (fy * Xa[1] + cy * Xa[2] - v * Xa[2]) / X[2]
+        j11 = (fy * Xb[1] + cy * Xb[2] - v * Xb[2]) / X[2]
+        det = j00 * j11 - j01 * j10
+        if abs(det) < 1e-12:
+            ext_a = ext_b = 1e6
+        else:  # extent of one pixel's footprint along each texture axis, texels
+            ext_a = (abs(j11) + abs(j01)) / abs(det)
+            ext_b = (abs(j10) + abs(j00)) / abs(det)
+        mu, mv = tex.max_levels
+        bias = self.s.lod_bias
+        lu = min(max(int(math.floor(math.log2(max(ext_a, 1e-9)) + bias)), 0), mu)
+        lv = min(max(int(math.floor(math.log2(max(ext_b, 1e-9)) + bias)), 0), mv)
+        lev = tex.levels[lu][lv]
+        fu, fv = tw / lev.shape[1], th / lev.shape[0]  # exact level scale factors
+        ol = [o[k] + Xa[k] * (fu - 1.0) / 2.0 + Xb[k] * (fv - 1.0) / 2.0 for k in range(3)]
+        c0 = [Xa[k] * fu for k in range(3)]
+        c1 = [Xb[k] * fv for k in range(3)]
+        H = np.array([[fx * c0[0] + (cx - x0) * c0[2], fx * c1[0] + (cx - x0) * c1[2], fx * ol[0] + (cx - x0) * ol[2]],
+                      [fy * c0[1] + (cy - y0) * c0[2], fy * c1[1] + (cy - y0) * c1[2], fy * ol[1] + (cy - y0) * ol[2]],
+                      [c0[2], c1[2], ol[2]]])
+        border = cv2.BORDER_WRAP if tex.wrap else cv2.BORDER_REPLICATE
+        return cv2.warpPerspective(lev, H, (w, h), flags=cv2.INTER_LINEAR, borderMode=border)

@@ -1,0 +1,76 @@
+"""Ground truth of one frame: projected boxes, visible fractions, vehicle-frame states.
+
+``bbox`` is the projection of the object's 3-D box (clipped at the near plane),
+clipped to the image: ``[u0, v0, u1, v1]`` in pixels (centres at integers).
+``visible`` is the fraction of the box's silhouette inside the image that the
+rendered id buffer shows as this object (1.0 = not occluded). An object is in
+a frame's truth only when its box projects into the image.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from appliance.vision.geometry import PinholeCamera
+
+FloatArray = NDArray[np.float64]
+
+# the 12 edges of a box whose corners are ordered as in world.Body.corners
+_EDGES = [(0, 1), (1, 3), (3, 2), (2, 0), (4, 5), (5, 7), (7, 6), (6, 4), (0, 4), (1, 5), (2, 6), (3, 7)]
+
+
+@dataclass(frozen=True)
+class BoxView:
+    """The projected box of one object: image points of its silhouette and its clipped bbox."""
+
+    points: FloatArray  # (N, 2) projected corners and near-plane edge cuts, px
+    bbox: tuple[float, float, float, float]
+
+
+def project_box(camera: PinholeCamera, camera_from_world: FloatArray, corners_w: FloatArray,
+                near_m: float = 0.3) -> BoxView | None:
+    """Project 8 world corners (8, 3); None when the box is behind the camera or outside the image."""
+    Pc = corners_w @ camera_from_world[:3, :3].T + camera_from_world[:3, 3]
+    z = Pc[:, 2]
+    if np.all(z < near_m):
+        return None
+    pts = [Pc[z >= near_m]]
+    for a, b in _EDGES:
+        if (z[a] >= near_m) != (z[b] >= near_m):
+            s = (near_m - z[a]) / (z[b] - z[a])
+            pts.append((Pc[a] + s * (Pc[b] - Pc[a]))[None])
+    uv = camera.project(np.concatenate(pts))
+    uv = uv[np.all(np.isfinite(uv), axis=1)]
+    if len(uv) == 0:
+        return None
+    u0, v0 = uv.min(0)
+    u1, v1 = uv.max(0)
+    W, H = camera.width - 1.0, camera.height - 1.0
+    if u1 < 0 or v1 < 0 or u0 > W or v0 > H:
+        return None
+    bbox = (max(u0, 0.0), max(v0, 0.0), min(u1, W), min(v1, H))
+    return BoxView(uv, (float(bbox[0]), float(bbox[1]), float(bbox[2]), float(bbox[3])))
+
+
+def visible_fraction(view: BoxView, ids: NDArray[np.uint16], obj: int) -> float:
+    """Fraction of the silhouette (convex hull of the projected box, inside the image) that
+    the id buffer shows as ``obj``."""
+    H, W = ids.shape
+    x0, y0 = int(np.floor(view.bbox[0])), int(np.floor(view.bbox[1]))
+    x1, y1 = int(np.ceil(view.bbox[2])) + 1, int(np.ceil(view.bbox[3])) + 1
+    x1, y1 = min(x1, W), min(y1, H)
+    if x1 <= x0 or y1 <= y0:
+        return 0.0
+    hull = cv2.convexHull(view.points.astype(np.float32)).reshape(-1, 2)
+    pts = np.rint((hull - (x0, y0)) * 16).astype(np.int32)
+    mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    cv2.fillPoly(mask, [pts], 1, cv2.LINE_8, 4)
+    area = int(cv2.countNonZero(mask))
+    if area == 0:
+        return 0.0
+    shown = int(np.count_nonzero((ids[y0:y1, x0:x1] == obj) & mask.view(bool)))
+    return min(1.0, shown / area)

@@ -32,6 +32,7 @@ is the pure rule and the supervisor publishes it as :attr:`state` every
 
 from __future__ import annotations
 
+import copy
 import logging
 import threading
 import time
@@ -109,13 +110,17 @@ class VehicleCanReader:
         not block.
     :param bus_kwargs: extra arguments for ``can.Bus`` (e.g. ``port`` for udp_multicast).
     :param bus_factory: ``(interface, channel, can_filters, **bus_kwargs) -> BusABC``.
+    :param raw_sink: called on the Notifier thread with every received frame (a copy
+        whose ``timestamp`` is on the monotonic clock), e.g. to record the drive; must
+        not block.
     """
 
     def __init__(self, decoder: VehicleSignalDecoder, *, interface: str = "socketcan",
                  channel: str = "can0", stale_s: float = 0.2, reopen_min_s: float = 0.5,
                  reopen_max_s: float = 5.0, sink: Callable[[VehicleSignal], None] | None = None,
                  timestamp_clock: str = "wall", bus_kwargs: dict[str, Any] | None = None,
-                 bus_factory: BusFactory = open_bus) -> None:
+                 bus_factory: BusFactory = open_bus,
+                 raw_sink: Callable[[can.Message], None] | None = None) -> None:
         if timestamp_clock not in ("wall", "monotonic", "receive"):
             raise ValueError(
                 f"timestamp_clock {timestamp_clock!r} is not wall, monotonic or receive")
@@ -126,6 +131,7 @@ class VehicleCanReader:
         self.channel = channel
         self.stale_s = stale_s
         self._sink = sink
+        self._raw_sink = raw_sink
         self._clock_mode = timestamp_clock
         self._bus_kwargs = dict(bus_kwargs or {})
         self._factory = bus_factory
@@ -192,6 +198,13 @@ class VehicleCanReader:
     def _on_frame(self, msg: can.Message) -> None:
         count = self._counts.add
         count("frames")
+        if self._raw_sink is not None:
+            raw = copy.copy(msg)
+            raw.timestamp = self._monotonic_time(msg.timestamp)
+            try:
+                self._raw_sink(raw)
+            except Exception as exc:  # the consumer's bug must not stop the reader
+                count("sink_errors", error=f"raw sink: {type(exc).__name__}: {exc}")
         if msg.is_error_frame:
             count("error_frames", error=f"error frame class 0x{msg.arbitration_id:X}")
             if msg.arbitration_id & CAN_ERR_BUSOFF:

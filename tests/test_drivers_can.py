@@ -165,6 +165,22 @@ def test_reader_decodes_to_si_on_the_monotonic_clock(virtual_channel: tuple[str,
         assert r.stats.timestamp_fallbacks == 0
 
 
+def test_raw_sink_sees_every_frame_on_the_monotonic_clock(virtual_channel: tuple[str, can.BusABC],
+                                                          vehicle_db: Any) -> None:
+    name, car = virtual_channel
+    raw: Handoff[can.Message] = Handoff()
+    with VehicleCanReader(default_decoder(), interface="virtual", channel=name, raw_sink=raw) as r:
+        assert r.wait_stats(lambda st: st.opens == 1, WAIT)
+        t0 = time.monotonic()
+        car.send(speed_frame(vehicle_db, 50.0))
+        car.send(can.Message(arbitration_id=0x321, is_extended_id=False, data=b"\1\2"))
+        assert raw.wait_for(lambda s: len(s) == 2, WAIT)
+        t1 = time.monotonic()
+    frames = raw.snapshot()
+    assert [m.arbitration_id for m in frames] == [speed_frame(vehicle_db, 50.0).arbitration_id, 0x321]
+    assert all(t0 - 0.005 <= m.timestamp <= t1 + 0.001 for m in frames)
+
+
 def test_reader_counts_wire_problems_and_never_raises(virtual_channel: tuple[str, can.BusABC],
                                                       vehicle_db: Any) -> None:
     name, car = virtual_channel

@@ -13,7 +13,7 @@ from appliance.runtime.sensor_sync import SensorSync, SignalHistory
 def test_overwrite_oldest_counts_drops() -> None:
     rb: RingBuffer[int] = RingBuffer(3)
     for i in range(5):
-        rb.push(i)
+        rb.put(i)
     assert rb.drain() == [2, 3, 4]
     s = rb.stats()
     assert (s.pushed, s.taken, s.dropped, s.size) == (5, 3, 2, 0)
@@ -22,7 +22,7 @@ def test_overwrite_oldest_counts_drops() -> None:
 def test_take_newest_skips_and_counts_the_older_frames() -> None:
     rb: RingBuffer[int] = RingBuffer(4)
     for i in range(3):
-        rb.push(i)
+        rb.put(i)
     assert rb.take_newest(timeout=0) == 2
     assert rb.stats().dropped == 2
     assert rb.take_newest(timeout=0.01) is None
@@ -35,12 +35,12 @@ def test_consumer_wakes_when_a_producer_pushes() -> None:
 
     def consume() -> None:
         waiting.set()
-        got.append(rb.take_oldest(timeout=5.0))
+        got.append(rb.get(timeout=5.0))
 
     th = threading.Thread(target=consume)
     th.start()
     assert waiting.wait(5.0)
-    rb.push("frame")
+    rb.put("frame")
     th.join(5.0)
     assert got == ["frame"]
 

@@ -79,7 +79,7 @@ def check_frames(frames: list[can.Message], db: cantools.database.can.Database,
 
 def test_hmi_frames_as_candump_sees_them(tmp_path: Path, cfg: Config,
                                          appliance_db: cantools.database.can.Database) -> None:
-    require_socketcan(HMI_BUS)
+    require_socketcan()
     require_tools("candump", "stdbuf")
     with Candump(HMI_BUS) as dump:
         dump.sync()
@@ -130,7 +130,7 @@ def test_hmi_frames_as_candump_sees_them(tmp_path: Path, cfg: Config,
 def test_hmi_writer_survives_its_bus_going_down(tmp_path: Path, cfg: Config,
                                                 appliance_db: cantools.database.can.Database
                                                 ) -> None:
-    require_socketcan(HMI_BUS)
+    require_socketcan()
     require_tools("candump", "stdbuf")
     require_root()
     with restored_vcan(HMI_BUS), writer_for(cfg, tmp_path / "can_out.log") as writer:

@@ -56,7 +56,7 @@ def _receive(bus: can.BusABC, n: int, timeout: float = 5.0) -> list[can.Message]
 
 
 def test_canplayer_frames_reach_python_can(tmp_path: Path) -> None:
-    require_socketcan(VEHICLE_BUS)
+    require_socketcan()
     require_tools("canplayer")
     sent = _frames(200, seed=1)
     log = tmp_path / "can.log"
@@ -74,7 +74,7 @@ def test_canplayer_frames_reach_python_can(tmp_path: Path) -> None:
 
 
 def test_candump_captures_what_python_can_sends() -> None:
-    require_socketcan(HMI_BUS)
+    require_socketcan()
     require_tools("candump", "stdbuf")
     sent = _frames(100, seed=2)
     with Candump(HMI_BUS) as dump, can.Bus(interface="socketcan", channel=HMI_BUS) as bus:
@@ -89,7 +89,7 @@ def test_candump_captures_what_python_can_sends() -> None:
 
 def test_candump_filter_sees_only_its_ids() -> None:
     """The HMI integrator's view: ``candump vcan1,4C0:7FF`` shows only that id."""
-    require_socketcan(HMI_BUS)
+    require_socketcan()
     require_tools("candump", "stdbuf")
     with Candump(HMI_BUS, filters=["4C0:7FF"]) as dump, \
             can.Bus(interface="socketcan", channel=HMI_BUS) as bus:
@@ -107,7 +107,7 @@ def _send_one(channel: str, ident: int) -> None:
 
 
 def test_link_down_then_up_errors_then_delivers_again() -> None:
-    require_socketcan(VEHICLE_BUS)
+    require_socketcan()
     require_root()
     with restored_vcan(VEHICLE_BUS), \
             can.Bus(interface="socketcan", channel=VEHICLE_BUS) as rx, \
@@ -125,7 +125,7 @@ def test_link_down_then_up_errors_then_delivers_again() -> None:
 
 
 def test_link_deleted_and_recreated_needs_a_new_socket() -> None:
-    require_socketcan(VEHICLE_BUS)
+    require_socketcan()
     require_root()
     with restored_vcan(VEHICLE_BUS), can.Bus(interface="socketcan", channel=VEHICLE_BUS) as old:
         ip_link("delete", VEHICLE_BUS)

@@ -116,7 +116,7 @@ class Collected:
 
 
 def test_reader_decodes_a_recording_played_by_canplayer(tmp_path: Path, cfg: Config) -> None:
-    require_socketcan(VEHICLE_BUS)
+    require_socketcan()
     require_tools("canplayer")
     truth = write_drive(tmp_path / "drive", cfg, seconds=1.0)
     recording = Recording(tmp_path / "drive")
@@ -178,7 +178,7 @@ def _reader(cfg: Config, sink: Collected) -> VehicleCanReader:
 
 
 def test_reader_goes_stale_on_link_down_and_recovers_on_up(cfg: Config) -> None:
-    require_socketcan(VEHICLE_BUS)
+    require_socketcan()
     require_root()
     got = Collected()
     with restored_vcan(VEHICLE_BUS), Feed(), _reader(cfg, got) as reader:
@@ -200,7 +200,7 @@ def test_reader_goes_stale_on_link_down_and_recovers_on_up(cfg: Config) -> None:
 
 
 def test_reader_recovers_when_the_interface_is_deleted_and_recreated(cfg: Config) -> None:
-    require_socketcan(VEHICLE_BUS)
+    require_socketcan()
     require_root()
     got = Collected()
     with restored_vcan(VEHICLE_BUS), _reader(cfg, got) as reader:

@@ -33,13 +33,18 @@ def _unavailable(reason: str) -> None:
     pytest.skip(f"{reason} (tests/test_vcan_vm.py runs these in the vcan VM)")
 
 
-def require_socketcan(channel: str) -> None:
-    """Skip (fail in the VM) unless a raw CAN socket can bind to ``channel``."""
-    try:
-        with socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW) as s:
-            s.bind((channel,))
-    except OSError as exc:
-        _unavailable(f"SocketCAN {channel} unavailable: {exc}")
+def require_socketcan(channels: Sequence[str] = (VEHICLE_BUS, HMI_BUS)) -> None:
+    """Skip (fail in the VM) unless a raw CAN socket can bind to each of ``channels``.
+
+    Every test checks both buses by default, so a machine without them reports
+    one folded skip line for the whole suite.
+    """
+    for channel in channels:
+        try:
+            with socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW) as s:
+                s.bind((channel,))
+        except OSError as exc:
+            _unavailable(f"SocketCAN {channel} unavailable: {exc}")
 
 
 def require_tools(*names: str) -> None:

@@ -98,7 +98,8 @@ def job_script(command: Sequence[str], cwd: Path, job: Path, env: Mapping[str, s
     return "\n".join([
         "#!/bin/sh",
         "# written by tests.vcan_vm for one guest run",
-        f"cd {q(str(cwd))} || {{ echo 'vcan-vm: error: working directory {cwd} not found'; exit 1; }}",
+        (f"cd {q(str(cwd))} || {{ echo {q(f'vcan-vm: error: working directory {cwd} not found')}; "
+         "exit 1; }"),
         "echo 'vcan-vm: stage job-start'",
         (f"{{ env -i {exports} {shlex.join(command)} < /dev/null; "
          f"echo $? > {q(str(job / 'status.tmp'))}; }} 2>&1 | tee {q(str(job / 'output'))}"),
@@ -111,7 +112,11 @@ def job_script(command: Sequence[str], cwd: Path, job: Path, env: Mapping[str, s
 def guest_env(extra: Mapping[str, str] | None = None) -> dict[str, str]:
     """The command's environment in the guest: a few of the caller's variables plus markers."""
     env = {k: os.environ[k] for k in PASSED_ENV if k in os.environ}
-    env.setdefault("PATH", "/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin")
+    path = [p for p in env.get("PATH", "").split(":") if p]
+    # the tests run ip(8) and can-utils: make sure the system directories are searched
+    path += [p for p in ("/usr/local/sbin", "/usr/local/bin", "/usr/sbin", "/usr/bin", "/sbin",
+                         "/bin") if p not in path]
+    env["PATH"] = ":".join(path)
     env.update({"VCAN_VM": "1", "PYTHONUNBUFFERED": "1", "TMPDIR": "/dev/shm", "TERM": "dumb"})
     env.update(extra or {})
     return env

@@ -90,7 +90,8 @@ def test_module_order_puts_dependencies_first() -> None:
 def test_boot_hang_is_killed_at_the_limit() -> None:
     kernel = vm_kernel()
     with pytest.raises(VmFailure) as err:
-        run_in_vm(["true"], REPO, boot_timeout_s=0.5, kernel_image=kernel.image)
+        run_in_vm(["true"], REPO, boot_timeout_s=0.5, kernel_image=kernel.image,
+                  keep_on_failure=False)
     message = _one_line(str(err.value))
     assert "hung during boot" in message and "QEMU killed" in message
     assert _qemu_children() == []
@@ -100,7 +101,7 @@ def test_hung_job_is_killed_at_the_limit() -> None:
     kernel = vm_kernel()
     with pytest.raises(VmFailure) as err:
         run_in_vm(["sh", "-c", "echo about to hang; exec sleep 600"], REPO, timeout_s=15.0,
-                  kernel_image=kernel.image)
+                  kernel_image=kernel.image, keep_on_failure=False)
     message = _one_line(str(err.value))
     assert "job still running after 15 s" in message
     assert "last output: about to hang" in message

@@ -182,28 +182,36 @@ def run_in_vm(command: Sequence[str], cwd: Path, *, timeout_s: float = 600.0,
               boot_timeout_s: float = 120.0, kernel_image: Path | None = None,
               memory_mb: int = 1024, accel: str = "tcg", cpus: int = 1,
               env: Mapping[str, str] | None = None, keep: bool = False,
-              console: IO[str] | None = None) -> VmResult:
+              keep_on_failure: bool = True, console: IO[str] | None = None) -> VmResult:
     """Run ``command`` in ``cwd`` inside a fresh guest with ``vcan0`` and ``vcan1`` up.
 
     :param command: argv, run with ``env -i`` and :func:`guest_env` plus ``env``.
     :param cwd: working directory (a host path; the guest sees the same path).
     :param timeout_s: s, from QEMU start; the guest is killed when it runs out.
     :param boot_timeout_s: s, from QEMU start to the command's start.
-    :param keep: keep the job directory (initramfs, console log, output) after success.
+    :param keep: keep the whole job directory (initramfs, console log, output) after the run.
+    :param keep_on_failure: after a failure keep the console log and output (the message
+        names the directory); False removes everything.
     :param console: stream the serial console (boot messages and output) here live.
     :raises VmUnavailable: this machine cannot run the guest (skip).
     :raises VmFailure: missing module, boot failure, hang or lost result (one line).
     """
     kernel = check_host(kernel_image)
     job = Path(tempfile.mkdtemp(prefix="vcan-vm-"))
-    if re.search(r"\s", str(job)):
-        raise VmUnavailable(f"temporary directory {job} contains white space")
     try:
+        if re.search(r"\s", str(job)):
+            raise VmUnavailable(f"temporary directory {job} contains white space")
         build_initramfs(kernel, job / "initramfs", job / "initrd.cpio")
         (job / "job.sh").write_text(job_script(command, cwd, job, guest_env(env)))
         result = boot(kernel, job, memory_mb, accel, cpus, timeout_s, boot_timeout_s, console)
     except VmFailure as exc:
-        raise VmFailure(f"{exc} (job directory {job})") from None
+        if not keep_on_failure:
+            shutil.rmtree(job, ignore_errors=True)
+            raise
+        if not keep:  # the logs tell what happened; the 6 MB initramfs does not
+            shutil.rmtree(job / "initramfs", ignore_errors=True)
+            (job / "initrd.cpio").unlink(missing_ok=True)
+        raise VmFailure(f"{exc} (console log and output in {job})") from None
     except BaseException:
         shutil.rmtree(job, ignore_errors=True)
         raise

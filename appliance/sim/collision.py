@@ -21,11 +21,14 @@ FloatArray = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class Vehicle:
-    """The ego outline, m: front bumper and rear bumper distance from the rear axle, width."""
+    """The ego outline, m: front bumper and rear bumper distance from the rear axle, width; and
+    where the camera sits (vehicle frame, m)."""
 
     front: float
     rear: float
     width: float
+    camera_x: float = 1.9
+    camera_y: float = 0.0
 
     def corners(self) -> FloatArray:
         h = self.width / 2.0

@@ -93,7 +93,7 @@ class SimulatedDrive:
         self.cfg = cfg if cfg is not None else load_config()
         self.name, self.seed = scenario, seed
         m = self.cfg.mount
-        self.vehicle = Vehicle(m.vehicle_front_m, m.vehicle_rear_m, m.vehicle_width_m)
+        self.vehicle = Vehicle(m.vehicle_front_m, m.vehicle_rear_m, m.vehicle_width_m, m.x_m, m.y_m)
         self.plan: Plan = SCENARIOS[scenario].make(self.vehicle)
         streams = np.random.SeedSequence([seed, zlib.crc32(scenario.encode())]).spawn(8)
         rng = [np.random.default_rng(s) for s in streams]
@@ -101,7 +101,7 @@ class SimulatedDrive:
         self._world(rng[1], rng[2])
         self.bounce = BodyBounce.random(rng[3], self.tau_start - 1.0, self.tau_end + 1.0)
         self.effects = effects if effects is not None else Effects.random(rng[4])
-        self._effects_rng = rng[5]
+        self._effects_seed = int(rng[5].integers(2**63))  # every iteration replays the same noise
         self._sensors(rng[6])
         c = self.cfg.camera
         self.camera = PinholeCamera(c.width, c.height, c.fx, c.fy, c.cx, c.cy, tuple(c.distortion))
@@ -199,6 +199,16 @@ class SimulatedDrive:
     def frame_time(self, k: int) -> float:
         return T0 + float(self.frame_offsets[k])
 
+    @property
+    def can_messages(self) -> list[can.Message]:
+        """Every CAN frame of the drive (sorted by time; the steps hand them out frame by frame)."""
+        return list(self._can)
+
+    @property
+    def ptu_samples(self) -> list[tuple[float, float, float]]:
+        """Every PTU sample (t, pan_rad, tilt_rad) of the drive."""
+        return list(self._ptu)
+
     # ------------------------------------------------------------ geometry
 
     def camera_pose(self, tau: float) -> NDArray[np.float64]:
@@ -263,24 +273,43 @@ class SimulatedDrive:
 
     # ------------------------------------------------------------ the stream
 
+    def _renderer(self) -> Renderer:
+        return Renderer(self.camera, self.bank.textures, self.bank["asphalt"])
+
+    def _render(self, renderer: Renderer, k: int) -> tuple[float, NDArray[np.float64], NDArray[np.uint8],
+                                                           NDArray[np.uint16], dict[str, Any]]:
+        """(t, world-from-camera, clean image, ids, truth) of frame k."""
+        t = self.frame_time(k)
+        tau = float(self.tau(t))
+        T_wc = self.camera_pose(tau)
+        T_cw = np.linalg.inv(T_wc)
+        faces = [self.static_faces]
+        for mv in self.movers:
+            p = mv.trajectory.position(tau)
+            faces.append(mv.body.placed(float(p[0]), float(p[1]), float(mv.trajectory.heading(tau))))
+        image, ids = renderer.render(T_cw, faces)
+        pose = [[round(float(v), 10) for v in row] for row in T_wc]
+        truth = {"camera_pose": pose, "objects": self._object_truth(tau, T_cw, ids)}
+        return t, T_wc, image, ids, truth
+
+    def snapshot(self, k: int) -> SimStep:
+        """Frame k on its own (random access, for tests and tools): no camera effects and no
+        sensor samples."""
+        if not 0 <= k < self.n_frames:
+            raise IndexError(f"frame {k} out of range 0..{self.n_frames - 1}")
+        t, _, image, ids, truth = self._render(self._renderer(), k)
+        return SimStep(k, t, image, [], [], truth, ids)
+
     def __iter__(self) -> Iterator[SimStep]:
-        renderer = Renderer(self.camera, self.bank.textures, self.bank["asphalt"])
-        fx = EffectsPipeline(self.effects, np.random.default_rng(self._effects_rng.integers(2**63)))
+        renderer = self._renderer()
+        fx = EffectsPipeline(self.effects, np.random.default_rng(self._effects_seed))
         can_i = ptu_i = 0
         prev_pose: NDArray[np.float64] | None = None
         centre = np.array([[self.camera.cx, self.camera.cy]])
         for k in range(self.n_frames):
-            t = self.frame_time(k)
-            tau = float(self.tau(t))
-            T_wc = self.camera_pose(tau)
-            T_cw = np.linalg.inv(T_wc)
-            faces = [self.static_faces]
-            for mv in self.movers:
-                p = mv.trajectory.position(tau)
-                faces.append(mv.body.placed(float(p[0]), float(p[1]), float(mv.trajectory.heading(tau))))
-            image, ids = renderer.render(T_cw, faces)
+            t, T_wc, image, ids, truth = self._render(renderer, k)
             motion = (0.0, 0.0)
-            if prev_pose is not None:
+            if prev_pose is not None:  # rotational image motion over one frame, for motion blur
                 R, _ = relative_motion(prev_pose, T_wc)
                 f = rotational_flow(self.camera, centre, R)[0]
                 motion = (float(f[0]), float(f[1]))
@@ -292,8 +321,6 @@ class SimulatedDrive:
             ptu_j = ptu_i
             while ptu_j < len(self._ptu) and self._ptu[ptu_j][0] <= t:
                 ptu_j += 1
-            pose = [[round(float(v), 10) for v in row] for row in T_wc]
-            truth = {"camera_pose": pose, "objects": self._object_truth(tau, T_cw, ids)}
             yield SimStep(k, t, image, self._can[can_i:can_j], self._ptu[ptu_i:ptu_j], truth, ids)
             can_i, ptu_i = can_j, ptu_j
 

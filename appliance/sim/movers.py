@@ -102,19 +102,21 @@ class MoverPlan:
     label: str = ""
 
 
-def crossing_course(*, ego_speed: float, ego_front_x: float, mover_speed: float, from_right: bool,
+def crossing_course(*, ego_speed: float, aim_x: float, mover_speed: float, from_right: bool,
                     aim_y: float, aim_tau: float, start_y: float, end_y: float) -> Trajectory:
     """A mover crossing the ego's path perpendicularly on an exact collision course.
 
-    The ego drives along world +x at ``ego_speed`` m/s with its front bumper at
-    ``ego_front_x + ego_speed * tau``. The mover walks/rides along y (towards
-    +y when ``from_right``) at ``mover_speed``; its footprint centre reaches the
-    point ``(front bumper, aim_y)`` at ``aim_tau``. It stands at lateral
-    position ``start_y`` until it sets off and stops at ``end_y`` (which can
-    lie beyond the car: the course is only cut by the collision).
+    The ego drives along world +x at ``ego_speed`` m/s from x = 0 at tau = 0.
+    The mover walks/rides along y (towards +y when ``from_right``) at
+    ``mover_speed``; its footprint centre reaches the vehicle-frame point
+    ``(aim_x, aim_y)`` at ``aim_tau`` (e.g. the front bumper at 25 % of the
+    width, or the camera: then the bearing from the camera is exactly
+    constant). It stands at lateral position ``start_y`` until it sets off and
+    stops at ``end_y`` (which can lie beyond the car: the course is only cut by
+    the collision).
     """
     sign = 1.0 if from_right else -1.0
-    x_line = ego_front_x + ego_speed * aim_tau
+    x_line = aim_x + ego_speed * aim_tau
     t_start = aim_tau - (aim_y - start_y) * sign / mover_speed
     t_end = aim_tau + (end_y - aim_y) * sign / mover_speed
     if not t_start < aim_tau < t_end:

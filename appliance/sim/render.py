@@ -227,7 +227,7 @@ class Renderer:
             zmax = s.far_m
         if len(poly) < 3:
             return
-        if job.texture == FLAT:  # markings and kerbs: one anti-aliased polygon
+        if job.texture == FLAT and job.layer != Layer.UPRIGHT:  # markings, kerbs: one anti-aliased polygon
             fog = self._fog(0.5 * (zmin + zmax))
             val = (1.0 - fog) * job.value + fog * s.haze
             cv2.fillPoly(img, [self._pts(poly)[0]], int(round(val)), cv2.LINE_AA, 4)
@@ -267,10 +267,13 @@ class Renderer:
         fog = self._fog(z_rep)
         depth_test = job.layer == Layer.UPRIGHT
         pts -= np.array([x0 * _SUB, y0 * _SUB], np.int32)
-        if w * h <= TINY_PX and not depth_test:  # a few pixels: the texture's mean is all one sees
-            val = (1.0 - fog) * self._mean[job.texture] + fog * s.haze
-            cv2.fillPoly(img[y0:y1, x0:x1], [pts], int(round(val)), cv2.LINE_8, 4)
-            return
+        flat = job.texture == FLAT or w * h <= TINY_PX  # a few pixels: the texture's mean is all one sees
+        if flat:
+            val = int(round((1.0 - fog) * (job.value if job.texture == FLAT else self._mean[job.texture])
+                            + fog * s.haze))
+            if not depth_test:
+                cv2.fillPoly(img[y0:y1, x0:x1], [pts], val, cv2.LINE_8, 4)
+                return
         mask = np.zeros((h, w), np.uint8)
         cv2.fillPoly(mask, [pts], 1, cv2.LINE_8, 4)
         invz = None
@@ -287,9 +290,8 @@ class Renderer:
             cv2.bitwise_and(mask, closer, dst=mask)
             if not cv2.countNonZero(mask):
                 return
-        if w * h <= TINY_PX:
-            warped = np.full((h, w), int(round((1.0 - fog) * self._mean[job.texture] + fog * s.haze)),
-                             np.uint8)
+        if flat:
+            warped = np.full((h, w), val, np.uint8)
         else:
             warped = self._warp(job, slab, x0, y0, w, h)
             if fog > 0.0:

@@ -79,7 +79,7 @@ def pedestrian_crossing_nearside(v: Vehicle) -> Plan:
     between two parked cars; the nearer car hides the body below the roof line while the
     pedestrian crosses the parking lane. Impact at 25 % of the width from the right."""
     ego_speed, T = 35 * KMH, 8.0
-    walk = crossing_course(ego_speed=ego_speed, ego_front_x=v.front, mover_speed=WALK, from_right=True,
+    walk = crossing_course(ego_speed=ego_speed, aim_x=v.front, mover_speed=WALK, from_right=True,
                            aim_y=-v.width / 2 + 0.25 * v.width, aim_tau=T, start_y=-6.4, end_y=6.0)
     x_line = walk.waypoints[0][1]
     occluder, behind = x_line - 0.7 - 2.25, x_line + 0.8 + 2.25
@@ -90,12 +90,13 @@ def pedestrian_crossing_nearside(v: Vehicle) -> Plan:
 
 
 def car_crossing_intersection(v: Vehicle) -> Plan:
-    """Ego 50 km/h towards an intersection; a car (25 km/h) comes from the right on the cross
-    street on a collision course. The PTU pans 20 deg right towards it 8 s before impact; the
+    """Ego 40 km/h towards an intersection; a car (20 km/h) pulls in from the right on the cross
+    street on a collision course aimed at the camera: seen from the camera its bearing (27 deg
+    right) is exactly constant. The PTU pans 20 deg right towards it 8 s before impact; the
     near-right corner is an open car park so the car is in view early."""
-    ego_speed, car_speed, T = 50 * KMH, 25 * KMH, 10.0
-    course = crossing_course(ego_speed=ego_speed, ego_front_x=v.front, mover_speed=car_speed,
-                             from_right=True, aim_y=0.0, aim_tau=T, start_y=-200.0, end_y=60.0)
+    ego_speed, car_speed, T = 40 * KMH, 20 * KMH, 10.0
+    course = crossing_course(ego_speed=ego_speed, aim_x=v.camera_x, mover_speed=car_speed,
+                             from_right=True, aim_y=v.camera_y, aim_tau=T, start_y=-200.0, end_y=60.0)
     s_cross = course.waypoints[0][1] - 1.75  # the car keeps to its right-hand lane
     street = StreetPlan(intersections=(Intersection(s_cross, ("near_right",), 70.0),),
                         no_parking=(NoParking(s_cross - 150.0, s_cross, "right"),))
@@ -106,10 +107,11 @@ def car_crossing_intersection(v: Vehicle) -> Plan:
 
 def cyclist_crossing_intersection(v: Vehicle) -> Plan:
     """Ego 30 km/h towards an intersection; a cyclist (15 km/h) comes from the left on the cross
-    street on a collision course. The PTU pans 20 deg left towards it 8 s before impact."""
+    street on a collision course aimed at the camera (constant bearing, 27 deg left). The PTU
+    pans 20 deg left towards it 8 s before impact."""
     ego_speed, bike_speed, T = 30 * KMH, 15 * KMH, 10.0
-    course = crossing_course(ego_speed=ego_speed, ego_front_x=v.front, mover_speed=bike_speed,
-                             from_right=False, aim_y=0.0, aim_tau=T, start_y=120.0, end_y=-40.0)
+    course = crossing_course(ego_speed=ego_speed, aim_x=v.camera_x, mover_speed=bike_speed,
+                             from_right=False, aim_y=v.camera_y, aim_tau=T, start_y=120.0, end_y=-40.0)
     s_cross = course.waypoints[0][1] + 2.5  # rides 1 m from the right kerb of its lane
     street = StreetPlan(intersections=(Intersection(s_cross, ("near_left",), 60.0),),
                         no_parking=(NoParking(s_cross - 120.0, s_cross, "left"),))
@@ -125,7 +127,7 @@ def pedestrian_stops_at_kerb(v: Vehicle) -> Plan:
     """Ego 30 km/h; a pedestrian walks towards the road on a collision course but stops at the
     kerb and waits while the car passes."""
     ego_speed, T = 30 * KMH, 7.0
-    walk = crossing_course(ego_speed=ego_speed, ego_front_x=v.front, mover_speed=WALK, from_right=True,
+    walk = crossing_course(ego_speed=ego_speed, aim_x=v.front, mover_speed=WALK, from_right=True,
                            aim_y=-v.width / 4, aim_tau=T, start_y=-6.4, end_y=6.0)
     x_line = walk.waypoints[0][1]
     ped = MoverPlan("pedestrian", stand_then_cross(stop_at(walk, stop_y=-4.15), -60.0),
@@ -173,7 +175,7 @@ def lead_car_driving_away(v: Vehicle) -> Plan:
 def _passing(v: Vehicle, in_front: bool) -> Plan:
     ego_speed, T = 30 * KMH, 7.0
     ego = EgoPlan(speed=((0.0, ego_speed),))
-    walk = crossing_course(ego_speed=ego_speed, ego_front_x=v.front, mover_speed=WALK, from_right=True,
+    walk = crossing_course(ego_speed=ego_speed, aim_x=v.front, mover_speed=WALK, from_right=True,
                            aim_y=0.0, aim_tau=T, start_y=-6.4, end_y=8.0)
     walk = near_miss(walk, "pedestrian", ego, v, 1.0, in_front, (T - 5.0, T + 5.0))
     x_line = walk.waypoints[0][1]
@@ -207,7 +209,7 @@ SCENARIOS: dict[str, Scenario] = {
         _scenario(pedestrian_crossing_nearside, True,
                   "collision: pedestrian steps out between parked cars, 35 km/h, impact at 25 % width"),
         _scenario(car_crossing_intersection, True,
-                  "collision: car from the right at an intersection, 50 km/h vs 25 km/h, PTU pans right"),
+                  "collision: car from the right at an intersection, 40 km/h vs 20 km/h, PTU pans right"),
         _scenario(cyclist_crossing_intersection, True,
                   "collision: cyclist from the left at an intersection, 30 km/h vs 15 km/h, PTU pans left"),
         _scenario(pedestrian_stops_at_kerb, False,

@@ -1,7 +1,8 @@
 """Ground truth of one frame: projected boxes, visible fractions, vehicle-frame states.
 
-``bbox`` is the projection of the object's 3-D box (clipped at the near plane),
-clipped to the image: ``[u0, v0, u1, v1]`` in pixels (centres at integers).
+``bbox`` is the bounding box of the projected 3-D box (clipped at the near plane)
+after clipping its silhouette to the image: ``[u0, v0, u1, v1]`` in pixels
+(centres at integers, ``0 <= u <= width - 1``), i.e. the box of what the image shows.
 ``visible`` is the fraction of the box's silhouette inside the image that the
 rendered id buffer shows as this object (1.0 = not occluded). An object is in
 a frame's truth only when its box projects into the image.
@@ -27,7 +28,7 @@ _EDGES = [(0, 1), (1, 3), (3, 2), (2, 0), (4, 5), (5, 7), (7, 6), (6, 4), (0, 4)
 class BoxView:
     """The projected box of one object: image points of its silhouette and its clipped bbox."""
 
-    points: FloatArray  # (N, 2) projected corners and near-plane edge cuts, px
+    points: FloatArray  # (N, 2) silhouette (convex hull of the projected box) inside the image, px
     bbox: tuple[float, float, float, float]
 
 
@@ -45,28 +46,47 @@ def project_box(camera: PinholeCamera, camera_from_world: FloatArray, corners_w:
             pts.append((Pc[a] + s * (Pc[b] - Pc[a]))[None])
     uv = camera.project(np.concatenate(pts))
     uv = uv[np.all(np.isfinite(uv), axis=1)]
-    if len(uv) == 0:
+    if len(uv) < 3:
         return None
-    u0, v0 = uv.min(0)
-    u1, v1 = uv.max(0)
-    W, H = camera.width - 1.0, camera.height - 1.0
-    if u1 < 0 or v1 < 0 or u0 > W or v0 > H:
+    hull = cv2.convexHull(uv.astype(np.float32)).reshape(-1, 2).astype(np.float64)
+    inside = _clip_to_image(hull, camera.width - 1.0, camera.height - 1.0)
+    if len(inside) < 3:
         return None
-    bbox = (max(u0, 0.0), max(v0, 0.0), min(u1, W), min(v1, H))
-    return BoxView(uv, (float(bbox[0]), float(bbox[1]), float(bbox[2]), float(bbox[3])))
+    u0, v0 = inside.min(0)
+    u1, v1 = inside.max(0)
+    return BoxView(inside, (float(u0), float(v0), float(u1), float(v1)))
+
+
+def _clip_to_image(poly: FloatArray, umax: float, vmax: float) -> FloatArray:
+    """The part of a convex polygon (N, 2) inside [0, umax] x [0, vmax] (Sutherland-Hodgman)."""
+    pts = [tuple(p) for p in poly]
+    for axis, bound, keep_below in ((0, 0.0, False), (0, umax, True), (1, 0.0, False), (1, vmax, True)):
+        out = []
+        for i in range(len(pts)):
+            a, b = pts[i], pts[(i + 1) % len(pts)]
+            da = (bound - a[axis]) if keep_below else (a[axis] - bound)
+            db = (bound - b[axis]) if keep_below else (b[axis] - bound)
+            if da >= 0:
+                out.append(a)
+            if (da >= 0) != (db >= 0):
+                s = da / (da - db)
+                out.append((a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1])))
+        pts = out
+        if not pts:
+            break
+    return np.array(pts, float).reshape(-1, 2)
 
 
 def visible_fraction(view: BoxView, ids: NDArray[np.uint16], obj: int) -> float:
     """Fraction of the silhouette (convex hull of the projected box, inside the image) that
     the id buffer shows as ``obj``."""
     H, W = ids.shape
-    x0, y0 = int(np.floor(view.bbox[0])), int(np.floor(view.bbox[1]))
+    x0, y0 = max(int(np.floor(view.bbox[0])), 0), max(int(np.floor(view.bbox[1])), 0)
     x1, y1 = int(np.ceil(view.bbox[2])) + 1, int(np.ceil(view.bbox[3])) + 1
     x1, y1 = min(x1, W), min(y1, H)
     if x1 <= x0 or y1 <= y0:
         return 0.0
-    hull = cv2.convexHull(view.points.astype(np.float32)).reshape(-1, 2)
-    pts = np.rint((hull - (x0, y0)) * 16).astype(np.int32)
+    pts = np.rint((view.points - (x0, y0)) * 16).astype(np.int32)
     mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
     cv2.fillPoly(mask, [pts], 1, cv2.LINE_8, 4)
     area = int(cv2.countNonZero(mask))

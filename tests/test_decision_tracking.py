@@ -15,7 +15,7 @@ def cluster(u: float, v: float, flow: tuple[float, float] = (0.0, 0.0), size: fl
             prob: float = 0.8) -> Cluster:
     pos = np.array([[u - 5, v - 5], [u + 5, v + 5], [u, v]], dtype=float)
     return Cluster(bbox=(u - size / 2, v - size / 2, u + size / 2, v + size / 2),
-                   region_bbox=(u - size, v - size, u + size, v + size), n=3,
+                   region_bbox=(u - size, v - size, u + size, v + size), n=3, foot_v=v + size / 2,
                    mean_flow=flow, mean_probability=prob, positions=pos,
                    flows=np.tile(flow, (3, 1)).astype(float), s=np.full(3, prob),
                    weights=np.full(3, prob))

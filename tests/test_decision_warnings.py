@@ -112,3 +112,22 @@ def test_highest_level_wins_and_events_name_the_track(default_config: Config) ->
     e = events[0]
     assert e.bbox == (300.0, 200.0, 340.0, 280.0) and e.ttc_s == 1.5 and e.distance_m == 15.0
     assert e.bearing_rad == -0.1 and e.frame == 2 and e.t == 2 / FPS
+
+
+def test_persistence_looks_ahead_by_its_window(default_config: Config) -> None:
+    """A TTC falling at 1 s/s is issued when it reaches 2.0 s, not three frames later."""
+    cfg = default_config.warning
+    state = WarningState()
+    issued = []
+    for k in range(60):
+        ttc = 2.5 - k / FPS
+        state, ev, _ = warning_step(state, (threat(1, ttc),), k / FPS, k, cfg, frame_dt=1 / FPS)
+        issued += [(e.level, ttc) for e in ev if e.level == 2]
+    assert len(issued) == 1 and 2.0 - 1 / FPS < issued[0][1] <= 2.0 + 1e-9
+    # without the look-ahead it comes (persistence - 1) frames late
+    state, late = WarningState(), []
+    for k in range(60):
+        ttc = 2.5 - k / FPS
+        state, ev, _ = warning_step(state, (threat(1, ttc),), k / FPS, k, cfg)
+        late += [ttc for e in ev if e.level == 2]
+    assert late[0] == pytest.approx(issued[0][1] - 2 / FPS)

@@ -39,12 +39,15 @@ class Cluster:
     mean_flow: eq. 19, px/frame (du, dv). mean_probability: eq. 20, in [0, 1].
     positions (N, 2) px, flows (N, 2) px/frame, s (N,) the map probability at
     each correspondence and weights (N,) its own particle weight: the members,
-    kept for the scale-change cue.
+    kept for the scale-change cue. foot_v: image row (px, exclusive edge like v1) of
+    the object's lowest point, the particle extent less the halo even where the box
+    is too small to shrink.
     """
 
     bbox: Box
     region_bbox: Box
     n: int
+    foot_v: float
     mean_flow: tuple[float, float]
     mean_probability: float
     positions: FloatArray
@@ -100,6 +103,7 @@ def merge_clusters(parts: list[Cluster]) -> Cluster:
 
     return Cluster(bbox=union([c.bbox for c in parts]),
                    region_bbox=union([c.region_bbox for c in parts]), n=len(pos),
+                   foot_v=max(c.foot_v for c in parts),
                    mean_flow=weighted_mean_motion(flows, s), mean_probability=mean_probability(s),
                    positions=pos, flows=flows, s=s, weights=w)
 
@@ -164,11 +168,17 @@ def find_clusters(prob: NDArray[np.float32], scale: int, particles: ParticleSet,
                   float(min((x0 + w) * scale, width)), float(min((y0 + h) * scale, height)))
         mpos, mflow, ms, mw = pos[members], flow[members], s_all[members], weight[members]
         moving = mw >= cfg.member_weight
-        bbox = shrink(_box_of(mpos[moving]), halo_px) if np.count_nonzero(moving) >= 2 else region
+        if np.count_nonzero(moving) >= 2:
+            extent = _box_of(mpos[moving])
+            bbox = shrink(extent, halo_px)
+            foot = extent[3] - halo_px  # the halo below the feet always comes off
+        else:
+            bbox = region
+            foot = region[3]
         bbox = (max(bbox[0], 0.0), max(bbox[1], 0.0), min(bbox[2], float(width)),
                 min(bbox[3], float(height)))
         clusters.append(Cluster(
-            bbox=bbox, region_bbox=region, n=n,
+            bbox=bbox, region_bbox=region, n=n, foot_v=min(foot, float(height)),
             mean_flow=weighted_mean_motion(mflow, ms),
             mean_probability=mean_probability(ms),
             positions=mpos, flows=mflow, s=ms, weights=mw,

@@ -126,8 +126,8 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
     if c is not None and track.confirmed:
         if not _touches_border(c, camera, cfg.ground.border_margin_px,
                                cfg.clustering.member_weight):
-            u0, _, u1, v1 = c.bbox
-            contact = ground_contact(camera, (0.5 * (u0 + u1), v1 - 0.5), pose, cfg.ground)
+            u0, _, u1, _ = c.bbox
+            contact = ground_contact(camera, (0.5 * (u0 + u1), c.foot_v - 0.5), pose, cfg.ground)
             if contact is not None:
                 g = (ground_init(contact, t, cfg.ground) if g is None
                      else ground_update(g, contact, t))
@@ -251,7 +251,7 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
             threats.append(assess(tr, cues[tr.uid], sensors, cfg, camera))
     threats.sort(key=lambda th: th.report.id)
     warning, events, warned = warning_step(state.warning, tuple(threats), t, frame_index,
-                                           cfg.warning)
+                                           cfg.warning, frame_dt=dt)
     new_state = DecisionState(prob=prob, tracker=tracker, cues=cues, warning=warning,
                               body_pitch=body_pitch, pose=pose, t=t, model=model)
     out = DecisionOutput(

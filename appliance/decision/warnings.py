@@ -7,7 +7,9 @@ predicted path meets the ego corridor and with what TTC. From that:
   (``corridor_margin_m``) and TTC <= ``ttc_warning_s``; level 1 with
   ``ttc_caution_s``.
 * **Minimum persistence.** A track raises a level only after indicating it in
-  ``min_persistence_frames`` consecutive frames: no single-frame warnings.
+  ``min_persistence_frames`` consecutive frames: no single-frame warnings. The
+  indication looks ahead by the window's length (threshold + (frames - 1) * frame
+  interval), so a steadily falling TTC is issued when it reaches the threshold.
 * **Hysteresis.** Once a track holds a level it keeps it while TTC <= threshold +
   ``hysteresis_s`` and the path meets the corridor widened by
   ``corridor_hysteresis_m``: a TTC oscillating around a threshold does not flicker.
@@ -71,17 +73,23 @@ def _indicated(th: TrackThreat, threshold: float, wide: bool, hysteresis: float)
 
 
 def warning_step(state: WarningState, threats: tuple[TrackThreat, ...], t: float, frame: int,
-                 cfg: WarningConfig
+                 cfg: WarningConfig, frame_dt: float = 0.0
                  ) -> tuple[WarningState, tuple[WarningEvent, ...], TrackReport | None]:
-    """One frame: (new state, events of this frame, the report behind the issued level)."""
+    """One frame: (new state, events of this frame, the report behind the issued level).
+
+    frame_dt: the frame interval (s); the persistence window looks ahead by its own
+    length, ``(min_persistence_frames - 1) * frame_dt``, so a steadily falling TTC is
+    issued when it reaches the threshold rather than one window later.
+    """
+    lookahead = max(cfg.min_persistence_frames - 1, 0) * max(frame_dt, 0.0)
     thresholds = {1: cfg.ttc_caution_s, 2: cfg.ttc_warning_s}
     streaks: dict[int, tuple[int, int]] = {}
     candidates: list[tuple[int, float, int, TrackThreat]] = []
     for th in threats:
         tid = th.report.id
         old = state.streaks.get(tid, (0, 0))
-        s1 = old[0] + 1 if _indicated(th, thresholds[1], False, 0.0) else 0
-        s2 = old[1] + 1 if _indicated(th, thresholds[2], False, 0.0) else 0
+        s1 = old[0] + 1 if _indicated(th, thresholds[1] + lookahead, False, 0.0) else 0
+        s2 = old[1] + 1 if _indicated(th, thresholds[2] + lookahead, False, 0.0) else 0
         streaks[tid] = (s1, s2)
         level = 0
         for k, streak in ((2, s2), (1, s1)):

@@ -178,9 +178,11 @@ def main(args: argparse.Namespace) -> int:
     rec, cfg = open_recording(args.recording, cfg)
     out_dir = Path(args.out)
     if args.realtime:
-        from appliance.runtime.realtime_replay import replay_realtime
+        from appliance.runtime.realtime_replay import Buses, replay_realtime
 
-        replay_realtime(rec, cfg, out_dir, video=args.video)
+        # the configured buses when the user gave a configuration, else private virtual ones
+        buses = Buses.from_config(cfg) if args.config else Buses.private_virtual()
+        replay_realtime(rec, cfg, out_dir, video=args.video, buses=buses)
         return 0
     video = None
     on_step = None

@@ -90,6 +90,10 @@ class Handoff(Generic[T]):
             self._closed = True
             self._cond.notify_all()
 
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
     def stats(self) -> HandoffStats:
         with self._cond:
             return HandoffStats(self.capacity, self.put_count, self.taken, self.dropped,

@@ -127,6 +127,9 @@ class PtuSimulator:
         return self
 
     def stop(self) -> None:
+        """Stop and release the pseudo-terminal; a second call does nothing."""
+        if self._stopping.is_set():
+            return
         self._stopping.set()
         os.write(self._wake_w, b"x")
         if self._thread is not None:

@@ -85,9 +85,13 @@ def timing_stats(values_ms: Sequence[float]) -> dict[str, float | None]:
 
 
 class RunOutputs:
-    """Writes a run's outputs into ``out_dir`` (created; existing output files are replaced)."""
+    """Writes a run's outputs into ``out_dir`` (created; existing output files are replaced).
 
-    def __init__(self, out_dir: str | Path) -> None:
+    ``can_log=False`` leaves ``can_out.log`` to the live HMI writer, which logs every frame
+    as it goes on the bus.
+    """
+
+    def __init__(self, out_dir: str | Path, can_log: bool = True) -> None:
         self.dir = Path(out_dir)
         self.dir.mkdir(parents=True, exist_ok=True)
         self._warnings = (self.dir / "warnings.jsonl").open("w")
@@ -95,7 +99,7 @@ class RunOutputs:
         self._ego_fh = (self.dir / "egomotion.csv").open("w", newline="")
         self._ego = csv.writer(self._ego_fh, lineterminator="\n")
         self._ego.writerow(EGOMOTION_HEADER)
-        self._can = can.CanutilsLogWriter(str(self.dir / "can_out.log"))
+        self._can = can.CanutilsLogWriter(str(self.dir / "can_out.log")) if can_log else None
         self.warnings_issued = 0
         self.can_frames = 0
         self._closed = False
@@ -105,7 +109,11 @@ class RunOutputs:
         self._ego.writerow(egomotion_row(out.frame, out.t, out.ego))
         row = {"t": float(out.t), "frame": int(out.frame), "tracks": [track_row(tr) for tr in out.tracks]}
         self._tracks.write(json.dumps(row) + "\n")
-        for w in out.warnings:
+        self.write_warnings(out.warnings)
+
+    def write_warnings(self, events: Sequence[WarningEvent]) -> None:
+        """Warning state changes (``warnings.jsonl``), flushed at once."""
+        for w in events:
             self._warnings.write(json.dumps(warning_row(w)) + "\n")
             if w.level > 0:
                 self.warnings_issued += 1
@@ -113,6 +121,8 @@ class RunOutputs:
 
     def write_can(self, msgs: Sequence[can.Message]) -> None:
         """Frames the appliance sent (``can_out.log``, candump -L)."""
+        if self._can is None:
+            raise RuntimeError("can_out.log belongs to the HMI writer in this run")
         for m in msgs:
             self._can.on_message_received(m)
             self.can_frames += 1
@@ -121,7 +131,8 @@ class RunOutputs:
         self._warnings.flush()
         self._tracks.flush()
         self._ego_fh.flush()
-        self._can.file.flush()
+        if self._can is not None:
+            self._can.file.flush()
 
     def write_summary(self, summary: dict[str, Any]) -> Path:
         body = {"version": __version__, "warnings_issued": self.warnings_issued,
@@ -137,7 +148,8 @@ class RunOutputs:
         self._warnings.close()
         self._tracks.close()
         self._ego_fh.close()
-        self._can.stop()
+        if self._can is not None:
+            self._can.stop()
 
     def __enter__(self) -> RunOutputs:
         return self

@@ -1,0 +1,136 @@
+"""A recording played live: through the drivers, ring buffers and threads, in real time.
+
+Used by ``replay --realtime`` and by the demo. The recording's frames go through
+the camera interface (:class:`~appliance.runtime.sources.RecordingSource`), its
+CAN frames onto a python-can bus where the real vehicle CAN reader receives them,
+its PTU positions through the PTU driver (against the PTU simulator on a
+pseudo-terminal) or a PTU player; warnings go out through the real HMI writer.
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import can
+
+from appliance.config import Config
+from appliance.errors import RuntimeFailure
+from appliance.recording import Recording
+from appliance.runtime.outputs import RunOutputs
+from appliance.runtime.sd_notify import SdNotifier
+from appliance.runtime.sources import CanPlayer, PlaybackClock, PtuPlayer, RecordingSource
+from appliance.runtime.supervisor import LiveInputs, RunStats, Supervisor, run_summary
+from appliance.runtime.wiring import hmi_codec, vehicle_decoder
+from drivers.hmi_can import HmiCanWriter
+from drivers.ptu import PtuDriver
+from drivers.ptu_sim import PtuSimulator
+from drivers.vehicle_can import VehicleCanReader
+
+START_LEAD_S = 0.3  # s, drivers open before the first recorded sample is played
+_channels = itertools.count()
+
+
+@dataclass(frozen=True)
+class Buses:
+    """Where the replayed vehicle CAN and the HMI output go (python-can interface, channel)."""
+
+    vehicle: tuple[str, str]
+    hmi: tuple[str, str]
+
+    @staticmethod
+    def private_virtual() -> Buses:
+        """Two in-process virtual buses no other run shares."""
+        n = f"{os.getpid()}-{next(_channels)}"
+        return Buses(("virtual", f"cw-vehicle-{n}"), ("virtual", f"cw-hmi-{n}"))
+
+    @staticmethod
+    def from_config(cfg: Config) -> Buses:
+        return Buses((cfg.vehicle_can.interface, cfg.vehicle_can.channel),
+                     (cfg.hmi_can.interface, cfg.hmi_can.channel))
+
+
+def play_live(rec: Recording, cfg: Config, out_dir: str | Path, buses: Buses, *,
+              ptu_simulator: bool = False, play_can: bool = True,
+              on_event: Callable[[str], None] | None = None,
+              notifier: SdNotifier | None = None) -> tuple[RunStats, dict[str, Any]]:
+    """Play ``rec`` live; returns the run's statistics and its ``summary.json`` content."""
+    out = Path(out_dir)
+    outputs = RunOutputs(out, can_log=False)
+    sup = Supervisor(cfg, outputs, notifier=notifier, on_event=on_event)
+    first = float(rec.frame_times[0])
+    first_can = next(iter(rec.can_messages()), None)
+    t0_rec = min(first, first_can.timestamp) if first_can is not None else first
+    track = rec.ptu()
+    vehicle = hmi = ptu = sim = player_bus = None
+    players: list[Any] = []
+    try:
+        vehicle = VehicleCanReader(
+            vehicle_decoder(cfg), interface=buses.vehicle[0], channel=buses.vehicle[1],
+            stale_s=cfg.vehicle_can.stale_s, reopen_min_s=cfg.vehicle_can.reopen_min_s,
+            reopen_max_s=cfg.vehicle_can.reopen_max_s, sink=sup.can_ring.put).start()
+        if play_can and not vehicle.wait_stats(lambda s: s.opens >= 1, 5.0):
+            raise RuntimeFailure(f"vehicle CAN {buses.vehicle[0]}:{buses.vehicle[1]} did not open: "
+                                 f"{vehicle.stats.last_error}")
+        hmi = HmiCanWriter(hmi_codec(cfg, buses.hmi[1]), interface=buses.hmi[0], channel=buses.hmi[1],
+                           period_s=cfg.hmi_can.period_s, tx_queue=cfg.hmi_can.tx_queue,
+                           log_path=out / "can_out.log").start()
+        if ptu_simulator:
+            sim = PtuSimulator().start()
+            p = cfg.ptu
+            ptu = PtuDriver(sim.port, baud=p.baud, pan_sign=p.pan_sign, tilt_sign=p.tilt_sign,
+                            pan_offset_rad=p.pan_offset_rad, tilt_offset_rad=p.tilt_offset_rad,
+                            poll_hz=p.poll_hz, timeout_s=p.timeout_s, retries=p.retries,
+                            speed_rad_s=p.speed_rad_s, sink=sup.ptu_ring.put).start()
+        clock = PlaybackClock(t0_rec, time.monotonic() + START_LEAD_S)
+        if play_can:
+            player_bus = can.Bus(interface=buses.vehicle[0], channel=buses.vehicle[1])
+            players.append(CanPlayer(rec.can_messages(), player_bus, clock).start())
+        if not ptu_simulator and track is not None:
+            players.append(PtuPlayer(track, sup.ptu_ring.put, clock).start())
+        if sim is not None:
+            players.append(sim)
+        camera = RecordingSource(rec, clock, capacity=cfg.runtime.frame_buffer)
+        inputs = LiveInputs(camera=camera, vehicle=vehicle, ptu=ptu, hmi=hmi, players=players,
+                            clock_offset=clock.offset,
+                            ptu_enabled=ptu_simulator or track is not None,
+                            finished=camera.finished)
+        try:
+            stats = sup.run(inputs)
+        finally:
+            vehicle = hmi = ptu = None  # the supervisor stopped them and the players
+            players = []
+        if camera.error is not None:
+            raise camera.error
+    finally:
+        for part in (vehicle, hmi, ptu):
+            if part is not None:
+                part.stop(timeout=0.5)
+        for pl in players:
+            pl.stop()
+        if player_bus is not None:
+            player_bus.shutdown()
+    summary = run_summary(stats, cfg, {"warnings_issued": sum(1 for w in stats.warnings if w.level > 0)})
+    outputs.write_summary(summary)
+    outputs.close()
+    return stats, summary
+
+
+def replay_realtime(rec: Recording, cfg: Config, out_dir: Path, video: str | None = None,
+                    buses: Buses | None = None) -> RunStats:
+    """``replay --realtime``: private virtual buses unless the configuration names real ones."""
+    if video:
+        from appliance.errors import UsageError
+
+        raise UsageError("--video is only available without --realtime (replay the same recording "
+                         "as fast as possible to draw it)")
+    stats, summary = play_live(rec, cfg, out_dir, buses or Buses.private_virtual(),
+                               on_event=lambda line: print(line, flush=True))
+    print(f"replayed {stats.frames_processed} of {stats.frames_read} frames of {rec.path} in real time "
+          f"-> {out_dir}")
+    return stats

@@ -1,0 +1,212 @@
+"""Recording-backed sources that serve the drivers' interfaces, paced in real time.
+
+``--realtime`` replay and the demo play a drive recording *through the drivers*:
+frames through the camera interface (:class:`RecordingSource`, registered as the
+camera source ``"recording"``), CAN frames onto a python-can bus where the real
+vehicle CAN reader receives them (:class:`CanPlayer`), PTU positions into the PTU
+ring as the PTU driver would deliver them (:class:`PtuPlayer`).
+
+All three share one :class:`PlaybackClock`: recording time ``t_rec`` is played at
+monotonic time ``t0 + (t_rec - t_rec0)``, so frames and CAN stay in step as they
+were recorded. Frames are stamped on the monotonic clock like a live camera's.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+
+import can
+
+from appliance.recording import PtuTrack, Recording
+from drivers.camera import CameraFrame, CameraStats, FrameSource, register_source
+from drivers.link import LinkState
+from drivers.ptu import PtuSample
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class PlaybackClock:
+    """Maps recording time to the monotonic clock: ``mono = t0_mono + (t_rec - t0_rec)``."""
+
+    t0_rec: float
+    t0_mono: float
+
+    @property
+    def offset(self) -> float:
+        """Add to a monotonic time to get the recording time."""
+        return self.t0_rec - self.t0_mono
+
+    def mono(self, t_rec: float) -> float:
+        return self.t0_mono + (t_rec - self.t0_rec)
+
+
+def wait_until(stop: threading.Event, mono_t: float) -> bool:
+    """Sleep until monotonic time ``mono_t``; False if ``stop`` was set meanwhile."""
+    delay = mono_t - time.monotonic()
+    return not stop.wait(delay) if delay > 0 else not stop.is_set()
+
+
+class RecordingSource(FrameSource):
+    """A camera that plays a recording's frames, paced by ``clock`` (or as fast as read).
+
+    When the recording ends the source reports ``LinkState.LOST`` (a camera that
+    stopped delivering) and sets :attr:`finished`.
+    """
+
+    def __init__(self, recording: Recording, clock: PlaybackClock | None = None,
+                 capacity: int = 4) -> None:
+        self.recording = recording
+        self.clock = clock
+        self.finished = threading.Event()
+        self._capacity = capacity
+        self._frames: list[CameraFrame] = []
+        self._cond = threading.Condition()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._state = LinkState.STARTING
+        self._stats = CameraStats()
+        self.error: Exception | None = None
+
+    def open(self) -> None:
+        self._thread = threading.Thread(target=self._run, name="camera-recording", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        captured = overwritten = 0
+        try:
+            for f in self.recording.frames():
+                if self.clock is not None and not wait_until(self._stop, self.clock.mono(f.t)):
+                    break
+                t = self.clock.mono(f.t) if self.clock is not None else f.t
+                with self._cond:
+                    if len(self._frames) >= self._capacity:
+                        self._frames.pop(0)
+                        overwritten += 1
+                    self._frames.append(CameraFrame(f.index, t, f.image, "recording"))
+                    captured += 1
+                    self._state = LinkState.OK
+                    self._stats = CameraStats(frames=captured, delivered=self._stats.delivered,
+                                              overwritten=overwritten, opens=1)
+                    self._cond.notify_all()
+                if self._stop.is_set():
+                    break
+        except Exception as exc:  # a corrupt recording: reported by the runtime, not raised here
+            self.error = exc
+            log.error("recording source %s: %s", self.recording.path, exc)
+        with self._cond:
+            self._state = LinkState.LOST
+            self.finished.set()
+            self._cond.notify_all()
+
+    def read(self, timeout: float) -> CameraFrame | None:
+        with self._cond:
+            if not self._cond.wait_for(lambda: bool(self._frames) or self.finished.is_set(), timeout):
+                return None
+            if not self._frames:
+                return None
+            s = self._stats
+            self._stats = CameraStats(frames=s.frames, delivered=s.delivered + 1,
+                                      overwritten=s.overwritten, opens=1)
+            return self._frames.pop(0)
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(2.0)
+        self._state = LinkState.STOPPED
+
+    @property
+    def stats(self) -> CameraStats:
+        return self._stats
+
+    @property
+    def state(self) -> LinkState:
+        return self._state
+
+
+register_source("recording", RecordingSource)
+
+
+class _Player:
+    """A paced playback thread with start/stop and a ``finished`` event."""
+
+    name = "player"
+
+    def __init__(self) -> None:
+        self.finished = threading.Event()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.error: Exception | None = None
+
+    def start(self) -> _Player:
+        self._thread = threading.Thread(target=self._guarded, name=self.name, daemon=True)
+        self._thread.start()
+        return self
+
+    def _guarded(self) -> None:
+        try:
+            self._run()
+        except Exception as exc:
+            self.error = exc
+            log.error("%s: %s", self.name, exc)
+        finally:
+            self.finished.set()
+
+    def _run(self) -> None:
+        raise NotImplementedError
+
+    def stop(self, timeout: float = 2.0) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout)
+
+
+class CanPlayer(_Player):
+    """Sends a recording's CAN frames on ``bus`` at their recorded pace (the vehicle, replayed)."""
+
+    name = "can-player"
+
+    def __init__(self, messages: Iterator[can.Message], bus: can.BusABC, clock: PlaybackClock) -> None:
+        super().__init__()
+        self._messages = messages
+        self._bus = bus
+        self._clock = clock
+        self.sent = 0
+        self.send_errors = 0
+
+    def _run(self) -> None:
+        for msg in self._messages:
+            if not wait_until(self._stop, self._clock.mono(msg.timestamp)):
+                return
+            out = can.Message(arbitration_id=msg.arbitration_id, is_extended_id=msg.is_extended_id,
+                              is_remote_frame=msg.is_remote_frame, is_error_frame=msg.is_error_frame,
+                              is_fd=msg.is_fd, data=msg.data, dlc=msg.dlc)
+            try:
+                self._bus.send(out, timeout=0.05)
+                self.sent += 1
+            except can.CanError:
+                self.send_errors += 1
+
+
+class PtuPlayer(_Player):
+    """Hands a recording's PTU positions to ``sink`` at their recorded pace, as the driver would."""
+
+    name = "ptu-player"
+
+    def __init__(self, track: PtuTrack, sink: Callable[[PtuSample], None], clock: PlaybackClock) -> None:
+        super().__init__()
+        self._track = track
+        self._sink = sink
+        self._clock = clock
+
+    def _run(self) -> None:
+        for t, pan, tilt in zip(self._track.t, self._track.pan, self._track.tilt):
+            mono = self._clock.mono(float(t))
+            if not wait_until(self._stop, mono):
+                return
+            self._sink(PtuSample(mono, float(pan), float(tilt)))

@@ -98,7 +98,7 @@ class SimulatedDrive:
         streams = np.random.SeedSequence([seed, zlib.crc32(scenario.encode())]).spawn(8)
         rng = [np.random.default_rng(s) for s in streams]
         self._timeline(duration, rng[0])
-        self._world(rng[1], rng[2])
+        self._world(rng[1])
         self.bounce = BodyBounce.random(rng[3], self.tau_start - 1.0, self.tau_end + 1.0)
         self.effects = effects if effects is not None else Effects.random(rng[4])
         self._effects_seed = int(rng[5].integers(2**63))  # every iteration replays the same noise
@@ -148,8 +148,8 @@ class SimulatedDrive:
         self.collision_tau = found[0][0] if found else None
         self.collision_object = found[0][1] + 1 if found else None
 
-    def _world(self, rng_layout: np.random.Generator, rng_tex: np.random.Generator) -> None:
-        self.bank = TextureBank.generate(rng_tex)
+    def _world(self, rng_layout: np.random.Generator) -> None:
+        self.bank = TextureBank.for_seed(self.seed)
         self.movers = []
         keep = []
         for k, mv in enumerate(self.plan.movers):

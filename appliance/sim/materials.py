@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
@@ -55,6 +56,11 @@ class TextureBank:
         bank.add(tx.make_texture("sign", tx.sign(rng), False))
         return bank
 
+    @staticmethod
+    def for_seed(seed: int) -> TextureBank:
+        """The bank of a seed (same seed, same textures in every scenario); cached, never modified."""
+        return _bank_for_seed(seed)
+
     # ------------------------------------------------------------ skins
 
     def car_skin(self, k: int) -> BoxSkin:
@@ -80,3 +86,8 @@ class TextureBank:
         if kind == "cyclist":
             return self.cyclist_skin(k)
         raise ValueError(f"unknown mover class {kind!r}")
+
+
+@lru_cache(maxsize=4)
+def _bank_for_seed(seed: int) -> TextureBank:
+    return TextureBank.generate(np.random.default_rng(np.random.SeedSequence([seed, 0x7E47])))

@@ -21,7 +21,7 @@ import numpy as np
 from appliance.sim.collision import Vehicle, closest_approach
 from appliance.sim.ego import EgoPath, EgoPlan, PtuMove, PtuPlan
 from appliance.sim.movers import SIZES, MoverPlan, Trajectory, crossing_course, stand_then_cross, stop_at
-from appliance.sim.street import Intersection, NoParking, ParkedCar, StreetPlan
+from appliance.sim.street import ClearView, Intersection, ParkedCar, StreetPlan
 
 KMH = 1.0 / 3.6  # m/s per km/h
 WALK = 5.0 * KMH  # Euro NCAP adult walking speed
@@ -82,9 +82,9 @@ def pedestrian_crossing_nearside(v: Vehicle) -> Plan:
     walk = crossing_course(ego_speed=ego_speed, aim_x=v.front, mover_speed=WALK, from_right=True,
                            aim_y=-v.width / 2 + 0.25 * v.width, aim_tau=T, start_y=-6.4, end_y=6.0)
     x_line = walk.waypoints[0][1]
-    occluder, behind = x_line - 0.7 - 2.25, x_line + 0.8 + 2.25
+    occluder, behind = x_line - 1.5 - 2.25, x_line + 0.8 + 2.25
     street = StreetPlan(parked=(ParkedCar(occluder, "right", 4.5, 1), ParkedCar(behind, "right", 4.5, 5)),
-                        no_parking=(NoParking(x_line - 45.0, occluder, "right"),))
+                        clear_view=(ClearView(x_line - 45.0, occluder, "right"),))
     ped = MoverPlan("pedestrian", stand_then_cross(walk, -60.0), "adult, steps out between parked cars")
     return Plan(EgoPlan(speed=((0.0, ego_speed),)), duration_s=8.0, street=street, movers=(ped,))
 
@@ -99,7 +99,7 @@ def car_crossing_intersection(v: Vehicle) -> Plan:
                              from_right=True, aim_y=v.camera_y, aim_tau=T, start_y=-200.0, end_y=60.0)
     s_cross = course.waypoints[0][1] - 1.75  # the car keeps to its right-hand lane
     street = StreetPlan(intersections=(Intersection(s_cross, ("near_right",), 70.0),),
-                        no_parking=(NoParking(s_cross - 150.0, s_cross, "right"),))
+                        clear_view=(ClearView(s_cross - 150.0, s_cross, "right"),))
     ptu = PtuPlan(moves=(PtuMove(start=T - 8.0, duration=1.0, pan=-0.35),))
     car = MoverPlan("car", course, "car from the right on the cross street")
     return Plan(EgoPlan(speed=((0.0, ego_speed),)), duration_s=10.0, street=street, movers=(car,), ptu=ptu)
@@ -114,7 +114,7 @@ def cyclist_crossing_intersection(v: Vehicle) -> Plan:
                              from_right=False, aim_y=v.camera_y, aim_tau=T, start_y=120.0, end_y=-40.0)
     s_cross = course.waypoints[0][1] + 2.5  # rides 1 m from the right kerb of its lane
     street = StreetPlan(intersections=(Intersection(s_cross, ("near_left",), 60.0),),
-                        no_parking=(NoParking(s_cross - 120.0, s_cross, "left"),))
+                        clear_view=(ClearView(s_cross - 120.0, s_cross, "left"),))
     ptu = PtuPlan(moves=(PtuMove(start=T - 8.0, duration=1.0, pan=0.35),))
     bike = MoverPlan("cyclist", course, "cyclist from the left on the cross street")
     return Plan(EgoPlan(speed=((0.0, ego_speed),)), duration_s=10.0, street=street, movers=(bike,), ptu=ptu)
@@ -132,7 +132,7 @@ def pedestrian_stops_at_kerb(v: Vehicle) -> Plan:
     x_line = walk.waypoints[0][1]
     ped = MoverPlan("pedestrian", stand_then_cross(stop_at(walk, stop_y=-4.15), -60.0),
                     "pedestrian who stops at the kerb")
-    street = StreetPlan(no_parking=(NoParking(x_line - 35.0, x_line + 4.0, "right"),))
+    street = StreetPlan(clear_view=(ClearView(x_line - 35.0, x_line + 4.0, "right"),))
     return Plan(EgoPlan(speed=((0.0, ego_speed),)), duration_s=8.0, end_s=T + 1.0, street=street,
                 movers=(ped,))
 
@@ -145,7 +145,7 @@ def car_crosses_ahead(v: Vehicle) -> Plan:
     car = Trajectory(((t_cross - 80.0 / car_speed, x_line, 80.0), (t_cross + 80.0 / car_speed, x_line, -80.0)))
     s_cross = x_line + 1.75
     street = StreetPlan(intersections=(Intersection(s_cross, ("near_left",), 60.0),),
-                        no_parking=(NoParking(s_cross - 80.0, s_cross, "left"),))
+                        clear_view=(ClearView(s_cross - 80.0, s_cross, "left"),))
     return Plan(EgoPlan(speed=((0.0, ego_speed),)), duration_s=10.0, end_s=10.0, street=street,
                 movers=(MoverPlan("car", car, "car crossing well ahead"),))
 
@@ -183,7 +183,7 @@ def _passing(v: Vehicle, in_front: bool) -> Plan:
     _, t_close = closest_approach(path, walk, SIZES["pedestrian"], v, T - 5.0, T + 5.0)
     ped = MoverPlan("pedestrian", stand_then_cross(walk, -60.0),
                     "pedestrian passing 1 m " + ("in front of the bumper" if in_front else "behind the car"))
-    street = StreetPlan(no_parking=(NoParking(x_line - 35.0, x_line + 4.0, "right"),))
+    street = StreetPlan(clear_view=(ClearView(x_line - 35.0, x_line + 4.0, "right"),))
     return Plan(ego, duration_s=8.0, end_s=round(t_close + 0.5, 3), street=street, movers=(ped,))
 
 

@@ -86,7 +86,8 @@ class VehicleCan:
         return out
 
     def _msg(self, t: float, frame_id: int, data: bytes) -> can.Message:
-        return can.Message(timestamp=t, arbitration_id=frame_id, is_extended_id=False, data=data,
+        # microsecond timestamps, as candump logs and SocketCAN give them
+        return can.Message(timestamp=round(t, 6), arbitration_id=frame_id, is_extended_id=False, data=data,
                            channel=self.channel, is_rx=True)
 
 

@@ -68,8 +68,8 @@ class ParkedCar:
 
 
 @dataclass(frozen=True)
-class NoParking:
-    """No randomly parked cars on ``side`` between arc lengths ``s_from`` and ``s_to`` (m), e.g.
+class ClearView:
+    """No random parked cars or poles on ``side`` between arc lengths ``s_from`` and ``s_to`` (m),
     where they would hide a mover from the camera."""
 
     s_from: float
@@ -83,7 +83,7 @@ class StreetPlan:
 
     intersections: tuple[Intersection, ...] = ()
     parked: tuple[ParkedCar, ...] = ()
-    no_parking: tuple[NoParking, ...] = ()
+    clear_view: tuple[ClearView, ...] = ()
     parking_occupancy: float = 0.55
 
 
@@ -318,7 +318,7 @@ class StreetBuilder:
             iv = self._main_intervals(s_lo, s_hi, 0.0)
             for x in self.plan.intersections:
                 iv = _subtract(iv, (x.s - 13.0, x.s + 9.0))
-            for zone in self.plan.no_parking:
+            for zone in self.plan.clear_view:
                 if zone.side == side:
                     iv = _subtract(iv, (zone.s_from, zone.s_to))
             for a, b in iv:
@@ -337,8 +337,12 @@ class StreetBuilder:
     def _poles(self, s_lo: float, s_hi: float) -> None:
         pole_skin = BoxSkin(*([self.bank["pole"]] * 4), self.bank["roof"])
         sign_skin = BoxSkin(*([self.bank["sign"]] * 4), self.bank["roof"])
-        for d in (KERB_RIGHT - 0.5, KERB_LEFT + 0.5):
-            for a, b in self._main_intervals(s_lo, s_hi, CROSS_HALF + 4.0):
+        for side, d in (("right", KERB_RIGHT - 0.5), ("left", KERB_LEFT + 0.5)):
+            iv = self._main_intervals(s_lo, s_hi, CROSS_HALF + 4.0)
+            for zone in self.plan.clear_view:
+                if zone.side == side:
+                    iv = _subtract(iv, (zone.s_from, zone.s_to))
+            for a, b in iv:
                 s = a + float(self.rng.uniform(0, 20))
                 while s < b:
                     p = self.line.point(s, d)

@@ -1,0 +1,133 @@
+"""The scenarios are what they claim: speeds, durations, collision courses, visibility, PTU pans,
+body bounce, camera effects."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from appliance.sim.drive import T0, SimulatedDrive
+from appliance.sim.effects import Effects, EffectsPipeline
+from appliance.sim.ego import BodyBounce
+from appliance.sim.scenarios import SCENARIOS
+from appliance.sim.sensors import PTU_STEP_RAD
+from appliance.sim.truth import project_box
+
+
+def _mover_boxes(drive: SimulatedDrive, obj: int) -> np.ndarray:
+    """Projected box (u0, v0, u1, v1) of a mover in every frame (NaN out of view), no rendering."""
+    mv = drive.movers[obj - 1]
+    out = np.full((drive.n_frames, 4), np.nan)
+    for k in range(drive.n_frames):
+        tau = float(drive.tau(drive.frame_time(k)))
+        p = mv.trajectory.position(tau)
+        view = project_box(drive.camera, np.linalg.inv(drive.camera_pose(tau)),
+                           mv.body.corners(float(p[0]), float(p[1]), float(mv.trajectory.heading(tau))))
+        if view is not None:
+            out[k] = view.bbox
+    return out
+
+
+@pytest.mark.parametrize("name", list(SCENARIOS))
+def test_scenario_is_built_as_described(name: str) -> None:
+    sc = SCENARIOS[name]
+    drive = SimulatedDrive(name, seed=0)
+    speeds = [v for _, v in drive.plan.ego.speed]
+    assert all(20 / 3.6 <= v <= 60 / 3.6 for v in speeds)
+    assert 8.0 <= drive.duration <= 14.0
+    assert drive.truth_header["collision"] is sc.collision
+    if name == "bend_static":
+        assert not drive.movers
+        return
+    if not sc.collision:
+        assert drive.truth_header["collision_t"] is None
+        return
+    ct = drive.truth_header["collision_t"]
+    t = np.array([drive.frame_time(k) for k in range(drive.n_frames)])
+    assert t[-1] >= ct > t[-2]
+    box = _mover_boxes(drive, drive.truth_header["collision_object"])
+    tall = (box[:, 3] - box[:, 1]) >= 20.0
+    first_short = np.flatnonzero(~tall)
+    in_view_from = t[first_short[-1] + 1] if len(first_short) else t[0]
+    assert ct - in_view_from >= 2.9  # >= 20 px tall for about 3 s before the collision
+    # constant bearing: between 3 s and 1 s before impact it grows but hardly moves sideways
+    k3, k1 = np.searchsorted(t, ct - 3.0), np.searchsorted(t, ct - 1.0)
+    centre = 0.5 * (box[:, 0] + box[:, 2])
+    height = box[:, 3] - box[:, 1]
+    assert abs(centre[k1] - centre[k3]) < 8.0
+    assert height[k1] > 2.0 * height[k3]
+
+
+def test_pedestrian_is_partly_hidden_by_the_parked_car_while_stepping_out() -> None:
+    drive = SimulatedDrive("pedestrian_crossing_nearside", seed=0)
+    visible = {}
+    for before_s in (3.5, 2.0, 0.3):
+        step = drive.snapshot(drive.n_frames - 1 - int(round(before_s * 30)))
+        visible[before_s] = step.truth_frame["objects"]["1"]["visible"]
+    assert visible[3.5] > 0.9  # on the sidewalk, in view
+    assert 0.0 < visible[2.0] < 0.5  # crossing the parking lane behind the car: head and shoulders
+    assert visible[0.3] > 0.99
+
+
+def test_duration_shortens_the_lead_in_and_keeps_the_collision() -> None:
+    full = SimulatedDrive("cyclist_crossing_intersection", seed=0)
+    short = SimulatedDrive("cyclist_crossing_intersection", seed=0, duration=2.0)
+    assert short.n_frames == 61
+    assert short.tau_end == pytest.approx(full.tau_end)
+    assert short.truth_header["collision_t"] == pytest.approx(T0 + 2.0)
+    assert full.truth_header["collision_t"] == pytest.approx(T0 + full.duration)
+
+
+@pytest.mark.parametrize("name,pan", [("car_crossing_intersection", -0.35), ("cyclist_crossing_intersection", 0.35)])
+def test_ptu_pans_towards_the_crossing_traffic(name: str, pan: float) -> None:
+    drive = SimulatedDrive(name, seed=0)
+    t, p, tilt = (np.array(c) for c in zip(*drive.ptu_samples))
+    assert np.all(np.abs(np.diff(t) - 0.05) < 0.003)  # 20 Hz
+    assert p[0] == 0.0 and abs(p[-1] - pan) <= PTU_STEP_RAD
+    np.testing.assert_allclose(p / PTU_STEP_RAD, np.round(p / PTU_STEP_RAD), atol=1e-6)  # whole steps
+    assert np.all(tilt == 0.0)
+    assert np.all(np.abs(np.diff(p)) < 0.05)  # a smooth move, not a jump
+
+
+def test_other_movers_do_what_their_scenarios_say() -> None:
+    stops = SimulatedDrive("pedestrian_stops_at_kerb", seed=0)
+    traj = stops.movers[0].trajectory
+    assert traj.position(stops.tau_end)[1] == pytest.approx(-4.15)
+    assert np.allclose(traj.velocity(stops.tau_end - 1.0), 0.0)
+    lead = SimulatedDrive("lead_car_driving_away", seed=0)
+    gap = [lead.movers[0].trajectory.position(tau)[0] - lead.path.pose(tau)[0] for tau in (0.0, 5.0, 10.0)]
+    assert gap[0] < gap[1] < gap[2]
+    ahead = SimulatedDrive("car_crosses_ahead", seed=0)
+    box = _mover_boxes(ahead, 1)
+    seen = np.flatnonzero(np.isfinite(box[:, 0]))
+    assert len(seen) > 60 and box[seen[-1], 0] - box[seen[0], 0] > 200  # crosses the image left to right
+
+
+def test_body_bounce_is_a_few_tenths_of_a_degree_at_one_to_three_hertz() -> None:
+    tau = np.arange(0.0, 20.0, 0.01)
+    for seed in range(5):
+        pitch, roll, heave = BodyBounce.random(np.random.default_rng(seed), 0.0, 20.0).at(tau)
+        deg = np.degrees(pitch)
+        assert 0.1 < np.abs(deg).max() < 1.5 and np.abs(np.degrees(roll)).max() < 1.0
+        assert np.abs(heave).max() < 0.05
+        spec = np.abs(np.fft.rfft(deg - deg.mean()))
+        f = np.fft.rfftfreq(len(deg), 0.01)
+        assert 0.9 <= f[np.argmax(spec)] <= 3.2
+
+
+def test_camera_effects() -> None:
+    flat = np.full((120, 160), 128, np.uint8)
+    noisy = EffectsPipeline(Effects(noise_sigma=1.5), np.random.default_rng(0)).apply(flat, 0.0, (0.0, 0.0))
+    assert np.std(noisy.astype(float)) == pytest.approx(1.5, rel=0.15)
+    assert abs(noisy.mean() - 128) < 0.1
+    fl = EffectsPipeline(Effects(flicker=0.04), np.random.default_rng(0))
+    means = [fl.apply(flat, t, (0.0, 0.0)).mean() for t in np.arange(0, 2, 1 / 30)]
+    assert np.ptp(means) > 128 * 0.04 and np.ptp(means) < 128 * 0.2
+    bars = np.tile(np.repeat(np.array([60, 190], np.uint8), 4), (120, 20))
+    blurred = EffectsPipeline(Effects(blur_exposure=0.5), np.random.default_rng(0)).apply(bars, 0.0, (12.0, 0.0))
+    assert np.abs(np.diff(blurred.astype(float), axis=1)).mean() < 0.5 * np.abs(np.diff(bars.astype(float), axis=1)).mean()
+    assert np.array_equal(blurred[:, 40:], EffectsPipeline(Effects(blur_exposure=0.5), np.random.default_rng(9))
+                          .apply(bars, 0.0, (12.0, 0.0))[:, 40:])  # blur alone draws no random numbers
+    picks = [Effects.random(np.random.default_rng(s)) for s in range(40)]
+    assert all(0.5 <= e.noise_sigma <= 2.0 for e in picks)
+    assert 5 < sum(e.flicker > 0 for e in picks) < 35 and 3 < sum(e.blur_exposure > 0 for e in picks) < 30

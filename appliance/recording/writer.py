@@ -97,6 +97,11 @@ class RecordingWriter:
         self.n_frames += 1
         return index
 
+    @property
+    def last_t(self) -> float | None:
+        """Capture time of the last frame written (None before the first)."""
+        return self._last_t
+
     def write_can(self, msg: can.Message) -> None:
         """Append one CAN frame (its ``timestamp`` on the recording clock) to ``can.log``."""
         self._can_log.on_message_received(msg)

@@ -28,12 +28,25 @@ from appliance.runtime.sources import CanPlayer, PlaybackClock, PtuPlayer, Recor
 from appliance.runtime.supervisor import LiveInputs, RunStats, Supervisor, run_summary
 from appliance.runtime.wiring import hmi_codec, vehicle_decoder
 from drivers.hmi_can import HmiCanWriter
-from drivers.ptu import PtuDriver
+from appliance.runtime.recorder import LiveRecorder
+from drivers.ptu import PtuDriver, PtuSample
 from drivers.ptu_sim import PtuSimulator
 from drivers.vehicle_can import VehicleCanReader
 
 START_LEAD_S = 0.3  # s, drivers open before the first recorded sample is played
 _channels = itertools.count()
+
+
+@dataclass(frozen=True)
+class LiveRig:
+    """What a live playback is made of, handed to ``on_start`` (fault injection, monitoring)."""
+
+    supervisor: Supervisor
+    camera: RecordingSource
+    can_player: CanPlayer | None
+    ptu_simulator: PtuSimulator | None
+    ptu: PtuDriver | None
+    clock: PlaybackClock
 
 
 @dataclass(frozen=True)
@@ -58,11 +71,22 @@ class Buses:
 def play_live(rec: Recording, cfg: Config, out_dir: str | Path, buses: Buses, *,
               ptu_simulator: bool = False, play_can: bool = True,
               on_event: Callable[[str], None] | None = None,
-              notifier: SdNotifier | None = None) -> tuple[RunStats, dict[str, Any]]:
-    """Play ``rec`` live; returns the run's statistics and its ``summary.json`` content."""
+              notifier: SdNotifier | None = None,
+              on_start: Callable[[LiveRig], None] | None = None,
+              recorder: LiveRecorder | None = None) -> tuple[RunStats, dict[str, Any]]:
+    """Play ``rec`` live; returns the run's statistics and its ``summary.json`` content.
+
+    With ``recorder`` the run also records what the drivers delivered (``run --record``).
+    """
     out = Path(out_dir)
     outputs = RunOutputs(out, can_log=False)
-    sup = Supervisor(cfg, outputs, notifier=notifier, on_event=on_event)
+    sup = Supervisor(cfg, outputs, notifier=notifier, on_event=on_event, recorder=recorder)
+
+    def ptu_sink(sample: PtuSample) -> None:
+        sup.ptu_ring.put(sample)
+        if recorder is not None:
+            recorder.add_ptu(sample)
+
     first = float(rec.frame_times[0])
     first_can = next(iter(rec.can_messages()), None)
     t0_rec = min(first, first_can.timestamp) if first_can is not None else first
@@ -73,7 +97,8 @@ def play_live(rec: Recording, cfg: Config, out_dir: str | Path, buses: Buses, *,
         vehicle = VehicleCanReader(
             vehicle_decoder(cfg), interface=buses.vehicle[0], channel=buses.vehicle[1],
             stale_s=cfg.vehicle_can.stale_s, reopen_min_s=cfg.vehicle_can.reopen_min_s,
-            reopen_max_s=cfg.vehicle_can.reopen_max_s, sink=sup.can_ring.put).start()
+            reopen_max_s=cfg.vehicle_can.reopen_max_s, sink=sup.can_ring.put,
+            raw_sink=recorder.add_can if recorder is not None else None).start()
         if play_can and not vehicle.wait_stats(lambda s: s.opens >= 1, 5.0):
             raise RuntimeFailure(f"vehicle CAN {buses.vehicle[0]}:{buses.vehicle[1]} did not open: "
                                  f"{vehicle.stats.last_error}")
@@ -86,13 +111,15 @@ def play_live(rec: Recording, cfg: Config, out_dir: str | Path, buses: Buses, *,
             ptu = PtuDriver(sim.port, baud=p.baud, pan_sign=p.pan_sign, tilt_sign=p.tilt_sign,
                             pan_offset_rad=p.pan_offset_rad, tilt_offset_rad=p.tilt_offset_rad,
                             poll_hz=p.poll_hz, timeout_s=p.timeout_s, retries=p.retries,
-                            speed_rad_s=p.speed_rad_s, sink=sup.ptu_ring.put).start()
+                            speed_rad_s=p.speed_rad_s, sink=ptu_sink).start()
         clock = PlaybackClock(t0_rec, time.monotonic() + START_LEAD_S)
+        can_player = None
         if play_can:
             player_bus = can.Bus(interface=buses.vehicle[0], channel=buses.vehicle[1])
-            players.append(CanPlayer(rec.can_messages(), player_bus, clock).start())
+            can_player = CanPlayer(rec.can_messages(), player_bus, clock)
+            players.append(can_player.start())
         if not ptu_simulator and track is not None:
-            players.append(PtuPlayer(track, sup.ptu_ring.put, clock).start())
+            players.append(PtuPlayer(track, ptu_sink, clock).start())
         if sim is not None:
             players.append(sim)
         camera = RecordingSource(rec, clock, capacity=cfg.runtime.frame_buffer)
@@ -100,6 +127,8 @@ def play_live(rec: Recording, cfg: Config, out_dir: str | Path, buses: Buses, *,
                             clock_offset=clock.offset,
                             ptu_enabled=ptu_simulator or track is not None,
                             finished=camera.finished)
+        if on_start is not None:
+            on_start(LiveRig(sup, camera, can_player, sim, ptu, clock))
         try:
             stats = sup.run(inputs)
         finally:

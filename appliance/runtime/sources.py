@@ -55,14 +55,18 @@ class RecordingSource(FrameSource):
     """A camera that plays a recording's frames, paced by ``clock`` (or as fast as read).
 
     When the recording ends the source reports ``LinkState.LOST`` (a camera that
-    stopped delivering) and sets :attr:`finished`.
+    stopped delivering) and sets :attr:`finished`; no frame for ``stale_s`` s reports
+    ``STALE``, as the V4L2 camera does. :meth:`interrupt` injects a camera outage.
     """
 
     def __init__(self, recording: Recording, clock: PlaybackClock | None = None,
-                 capacity: int = 4) -> None:
+                 capacity: int = 4, stale_s: float = 0.5) -> None:
         self.recording = recording
         self.clock = clock
+        self.stale_s = stale_s
         self.finished = threading.Event()
+        self._outage: tuple[float, float] | None = None
+        self._last_mono: float | None = None
         self._capacity = capacity
         self._frames: list[CameraFrame] = []
         self._cond = threading.Condition()
@@ -83,7 +87,11 @@ class RecordingSource(FrameSource):
                 if self.clock is not None and not wait_until(self._stop, self.clock.mono(f.t)):
                     break
                 t = self.clock.mono(f.t) if self.clock is not None else f.t
+                out = self._outage
+                if out is not None and out[0] <= time.monotonic() < out[1]:
+                    continue  # the camera is "unplugged": this frame never arrives
                 with self._cond:
+                    self._last_mono = time.monotonic()
                     if len(self._frames) >= self._capacity:
                         self._frames.pop(0)
                         overwritten += 1
@@ -102,6 +110,11 @@ class RecordingSource(FrameSource):
             self._state = LinkState.LOST
             self.finished.set()
             self._cond.notify_all()
+
+    def interrupt(self, duration_s: float) -> None:
+        """Fault injection: deliver no frames for the next ``duration_s`` seconds."""
+        now = time.monotonic()
+        self._outage = (now, now + duration_s)
 
     def read(self, timeout: float) -> CameraFrame | None:
         with self._cond:
@@ -126,6 +139,9 @@ class RecordingSource(FrameSource):
 
     @property
     def state(self) -> LinkState:
+        last = self._last_mono
+        if self._state is LinkState.OK and last is not None and time.monotonic() - last > self.stale_s:
+            return LinkState.STALE
         return self._state
 
 
@@ -178,11 +194,20 @@ class CanPlayer(_Player):
         self._clock = clock
         self.sent = 0
         self.send_errors = 0
+        self._mute: tuple[float, float] | None = None
+
+    def mute(self, duration_s: float) -> None:
+        """Fault injection: the vehicle bus goes silent for the next ``duration_s`` seconds."""
+        now = time.monotonic()
+        self._mute = (now, now + duration_s)
 
     def _run(self) -> None:
         for msg in self._messages:
             if not wait_until(self._stop, self._clock.mono(msg.timestamp)):
                 return
+            mute = self._mute
+            if mute is not None and mute[0] <= time.monotonic() < mute[1]:
+                continue
             out = can.Message(arbitration_id=msg.arbitration_id, is_extended_id=msg.is_extended_id,
                               is_remote_frame=msg.is_remote_frame, is_error_frame=msg.is_error_frame,
                               is_fd=msg.is_fd, data=msg.data, dlc=msg.dlc)

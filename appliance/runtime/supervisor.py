@@ -154,11 +154,13 @@ class Supervisor:
             th.join(max(0.0, end - time.monotonic()))
         self._out_ring.close()
         threads[2].join(max(0.1, end - time.monotonic()))
-        for part in (inputs.camera,):
-            part.close()
+        log.debug("threads joined")
+        inputs.camera.close()
+        log.debug("camera closed")
         for part in (inputs.vehicle, inputs.ptu, inputs.hmi):
             if part is not None:
                 part.stop(timeout=0.5)
+                log.debug("stopped %s", type(part).__name__)
         for player in inputs.players:  # after the drivers, so a simulator outlives its driver
             player.stop()
         self.outputs.flush()

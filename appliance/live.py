@@ -18,6 +18,7 @@ from types import FrameType
 from typing import Any
 
 import cv2
+import cv2.utils.logging
 
 from appliance.config import Config
 from appliance.errors import RuntimeFailure
@@ -78,7 +79,7 @@ def main(args: argparse.Namespace) -> int:
     cfg: Config = args.cfg
     logging.basicConfig(level=logging.INFO, stream=sys.stderr, format="%(levelname)s %(message)s")
     # the drivers log a lost camera once; OpenCV would repeat it on every reopen attempt
-    cv2.setLogLevel(2)  # cv2.utils.logging.LOG_LEVEL_ERROR
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
     out_dir = Path(args.out or cfg.runtime.out_dir)
     try:
         out_dir.mkdir(parents=True, exist_ok=True)

@@ -31,11 +31,14 @@ def _id_box(ids: np.ndarray, obj: int) -> tuple[int, int, int, int] | None:
     return int(xs.min()), int(ys.min()), int(xs.max()), int(ys.max())
 
 
-@pytest.mark.parametrize("scenario,offsets_s", [
-    ("pedestrian_crossing_nearside", (0.0, 1.0, 3.5)),
-    ("car_crossing_intersection", (0.2, 1.5, 3.0)),
-    ("cyclist_crossing_intersection", (0.2, 2.0)),
-])
+@pytest.mark.parametrize(
+    "scenario,offsets_s",
+    [
+        ("pedestrian_crossing_nearside", (0.0, 1.0, 3.5)),
+        ("car_crossing_intersection", (0.2, 1.5, 3.0)),
+        ("cyclist_crossing_intersection", (0.2, 2.0)),
+    ],
+)
 def test_truth_box_matches_rendered_pixels(scenario: str, offsets_s: tuple[float, ...]) -> None:
     drive = SimulatedDrive(scenario, seed=1)
     compared = 0
@@ -54,7 +57,9 @@ def test_truth_box_matches_rendered_pixels(scenario: str, offsets_s: tuple[float
             if rec["visible"] < 0.999 or (u1 - u0) < 4 or (v1 - v0) < 4:
                 continue
             # unoccluded: the drawn pixels span the truth box within 2 px on every side
-            np.testing.assert_allclose(drawn, [u0, v0, u1, v1], atol=2.0, err_msg=f"{scenario} object {oid}")
+            np.testing.assert_allclose(
+                drawn, [u0, v0, u1, v1], atol=2.0, err_msg=f"{scenario} object {oid}"
+            )
             compared += 1
     assert compared >= 3
 
@@ -71,7 +76,8 @@ def _ray_box(obj: StaticObject, origin: np.ndarray, ray: np.ndarray) -> np.ndarr
     t_near, t_far = np.nanmax(np.minimum(t1, t2)), np.nanmin(np.maximum(t1, t2))
     if t_near > t_far or t_near <= 0:
         return None
-    return origin + t_near * ray
+    hit: np.ndarray = origin + t_near * ray
+    return hit
 
 
 def _lk_errors(drive: SimulatedDrive, a: SimStep, b: SimStep) -> np.ndarray:
@@ -83,7 +89,7 @@ def _lk_errors(drive: SimulatedDrive, a: SimStep, b: SimStep) -> np.ndarray:
     for p in corners:
         u, v = int(round(p[0])), int(round(p[1]))
         obj = int(a.ids[v, u])
-        window = a.ids[max(v - 8, 0):v + 9, max(u - 8, 0):u + 9]
+        window = a.ids[max(v - 8, 0) : v + 9, max(u - 8, 0) : u + 9]
         if obj not in boxes or np.any(window != obj):  # away from silhouette edges
             continue
         ray = A[:3, :3] @ np.array([(p[0] - CAM.cx) / CAM.fx, (p[1] - CAM.cy) / CAM.fy, 1.0])
@@ -94,12 +100,15 @@ def _lk_errors(drive: SimulatedDrive, a: SimStep, b: SimStep) -> np.ndarray:
     P = np.array(pts, np.float32)
     predicted = CAM.project(np.array(world) @ B_inv[:3, :3].T + B_inv[:3, 3])
     crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 0.001)
-    found, st, _ = cv2.calcOpticalFlowPyrLK(a.image, b.image, P, None, winSize=(11, 11), maxLevel=2,
-                                            criteria=crit)
-    back, st2, _ = cv2.calcOpticalFlowPyrLK(b.image, a.image, found, None, winSize=(11, 11), maxLevel=2,
-                                            criteria=crit)
+    found, st, _ = cv2.calcOpticalFlowPyrLK(  # type: ignore[call-overload]
+        a.image, b.image, P, None, winSize=(11, 11), maxLevel=2, criteria=crit
+    )
+    back, st2, _ = cv2.calcOpticalFlowPyrLK(  # type: ignore[call-overload]
+        b.image, a.image, found, None, winSize=(11, 11), maxLevel=2, criteria=crit
+    )
     ok = (st[:, 0] == 1) & (st2[:, 0] == 1) & (np.linalg.norm(back - P, axis=1) < 0.1)
-    return np.linalg.norm(found[ok] - predicted[ok], axis=1)
+    err: np.ndarray = np.linalg.norm(found[ok] - predicted[ok], axis=1)
+    return err
 
 
 @pytest.mark.parametrize("scenario", ["bend_static", "car_crossing_intersection"])
@@ -130,16 +139,26 @@ def test_occlusion_is_by_depth_where_a_painters_order_fails() -> None:
     textures = _textures()
     # a long facade whose nearest point is nearer than the car parked in front of it (a painter's
     # order by distance would draw the facade over the car), and a pedestrian hidden by the car
-    wall = box_faces(30.0, 1.0, 12.0, _skin(1), textures, 1001).transformed(np.eye(3), np.array([25.0, -7.5, 0]))
-    car = box_faces(4.4, 1.8, 1.45, _skin(2), textures, 101).transformed(np.eye(3), np.array([28.0, -2.6, 0]))
-    ped = box_faces(0.35, 0.55, 1.2, _skin(2), textures, 1).transformed(np.eye(3), np.array([33.0, -3.0, 0]))
+    wall = box_faces(30.0, 1.0, 12.0, _skin(1), textures, 1001).transformed(
+        np.eye(3), np.array([25.0, -7.5, 0])
+    )
+    car = box_faces(4.4, 1.8, 1.45, _skin(2), textures, 101).transformed(
+        np.eye(3), np.array([28.0, -2.6, 0])
+    )
+    ped = box_faces(0.35, 0.55, 1.2, _skin(2), textures, 1).transformed(
+        np.eye(3), np.array([33.0, -3.0, 0])
+    )
     for sets in ([wall, car, ped], [ped, car, wall]):
         _, ids = Renderer(CAM, textures, 0).render(_camera_from_world(), sets)
-        u, v = CAM.project(np.array([[2.6, 0.6, 28.0 - 2.2]]))[0]  # the car's rear face, camera frame
+        u, v = CAM.project(np.array([[2.6, 0.6, 28.0 - 2.2]]))[
+            0
+        ]  # the car's rear face, camera frame
         assert ids[int(round(v)), int(round(u))] == 101
         drawn = _id_box(ids, 101)
         assert drawn is not None
-        assert np.count_nonzero(ids == 101) > 0.9 * (drawn[2] - drawn[0] + 1) * (drawn[3] - drawn[1] + 1)
+        assert np.count_nonzero(ids == 101) > 0.9 * (drawn[2] - drawn[0] + 1) * (
+            drawn[3] - drawn[1] + 1
+        )
         assert np.count_nonzero(ids == 1001) > 10000
         assert np.count_nonzero(ids == 1) == 0
 
@@ -147,8 +166,20 @@ def test_occlusion_is_by_depth_where_a_painters_order_fails() -> None:
 def test_faces_beside_the_camera_are_clipped_at_the_near_plane() -> None:
     textures = _textures()
     # a wall on the right that starts behind the camera and runs far ahead
-    wall = FaceSet.from_quads([rect_face(np.array([20.0, -2.0, 2.0]), np.array([0, 1.0, 0]),
-                                         np.array([0, 0, -1.0]), 50.0, 4.0, 1, textures, obj=5)])
+    wall = FaceSet.from_quads(
+        [
+            rect_face(
+                np.array([20.0, -2.0, 2.0]),
+                np.array([0, 1.0, 0]),
+                np.array([0, 0, -1.0]),
+                50.0,
+                4.0,
+                1,
+                textures,
+                obj=5,
+            )
+        ]
+    )
     img, ids = Renderer(CAM, textures, 0).render(_camera_from_world(), [wall])
     ys, xs = np.nonzero(ids == 5)
     assert len(xs) > 10000
@@ -161,16 +192,34 @@ def test_prefiltered_levels_keep_distant_texture_from_aliasing() -> None:
     frame: Lucas-Kanade measures the true shift on the rip-mapped rendering; without
     pre-filtering (level 0 always) the aliasing shows up as false flow."""
     textures = [tx.asphalt(np.random.default_rng(1))]
-    wall = FaceSet.from_quads([rect_face(np.array([42.0, 0, 5]), np.array([-1.0, 0, 0]),
-                                         np.array([0, 0, -1.0]), 80, 40, 0, textures, obj=7)])
+    wall = FaceSet.from_quads(
+        [
+            rect_face(
+                np.array([42.0, 0, 5]),
+                np.array([-1.0, 0, 0]),
+                np.array([0, 0, -1.0]),
+                80,
+                40,
+                0,
+                textures,
+                obj=7,
+            )
+        ]
+    )
     p90 = {}
     for bias in (0.5, -20.0):
-        r = Renderer(CAM, textures, 0, RenderSettings(lod_bias=bias, fog_start_m=500.0, far_m=600.0))
-        frames = [r.render(_camera_from_world(-0.3 * k * 42.0 / 700.0), [wall])[0] for k in range(6)]
+        r = Renderer(
+            CAM, textures, 0, RenderSettings(lod_bias=bias, fog_start_m=500.0, far_m=600.0)
+        )
+        frames = [
+            r.render(_camera_from_world(-0.3 * k * 42.0 / 700.0), [wall])[0] for k in range(6)
+        ]
         errs = []
         for a, b in zip(frames, frames[1:]):
             pts = cv2.goodFeaturesToTrack(a, 300, 0.01, 10)
-            nxt, st, _ = cv2.calcOpticalFlowPyrLK(a, b, pts, None, winSize=(11, 11), maxLevel=2)
+            nxt, st, _ = cv2.calcOpticalFlowPyrLK(  # type: ignore[call-overload]
+                a, b, pts, None, winSize=(11, 11), maxLevel=2
+            )
             flow = (nxt - pts).reshape(-1, 2)[st[:, 0] == 1]
             errs.append(np.abs(flow[:, 0] + 0.3))
         p90[bias] = float(np.percentile(np.concatenate(errs), 90))
@@ -186,7 +235,9 @@ def test_wrapping_textures_tile_seamlessly_at_every_level() -> None:
         for lu in range(len(tex.levels)):
             for lv in range(len(tex.levels[lu])):
                 # down-sampling commutes with tiling: every level repeats exactly
-                np.testing.assert_array_equal(tiled.levels[lu][lv], np.tile(tex.levels[lu][lv], (2, 2)))
+                np.testing.assert_array_equal(
+                    tiled.levels[lu][lv], np.tile(tex.levels[lu][lv], (2, 2))
+                )
     noise = tx.asphalt(rng, size=256).levels[0][0].astype(float)
     seam = np.abs(noise[:, 0] - noise[:, -1]).mean()
     inner = np.abs(np.diff(noise, axis=1)).mean()

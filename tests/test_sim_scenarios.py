@@ -21,8 +21,11 @@ def _mover_boxes(drive: SimulatedDrive, obj: int) -> np.ndarray:
     for k in range(drive.n_frames):
         tau = float(drive.tau(drive.frame_time(k)))
         p = mv.trajectory.position(tau)
-        view = project_box(drive.camera, np.linalg.inv(drive.camera_pose(tau)),
-                           mv.body.corners(float(p[0]), float(p[1]), float(mv.trajectory.heading(tau))))
+        view = project_box(
+            drive.camera,
+            np.asarray(np.linalg.inv(drive.camera_pose(tau)), np.float64),
+            mv.body.corners(float(p[0]), float(p[1]), float(mv.trajectory.heading(tau))),
+        )
         if view is not None:
             out[k] = view.bbox
     return out
@@ -78,13 +81,17 @@ def test_duration_shortens_the_lead_in_and_keeps_the_collision() -> None:
     assert full.truth_header["collision_t"] == pytest.approx(T0 + full.duration)
 
 
-@pytest.mark.parametrize("name,pan", [("car_crossing_intersection", -0.35), ("cyclist_crossing_intersection", 0.35)])
+@pytest.mark.parametrize(
+    "name,pan", [("car_crossing_intersection", -0.35), ("cyclist_crossing_intersection", 0.35)]
+)
 def test_ptu_pans_towards_the_crossing_traffic(name: str, pan: float) -> None:
     drive = SimulatedDrive(name, seed=0)
     t, p, tilt = (np.array(c) for c in zip(*drive.ptu_samples))
     assert np.all(np.abs(np.diff(t) - 0.05) < 0.003)  # 20 Hz
     assert p[0] == 0.0 and abs(p[-1] - pan) <= PTU_STEP_RAD
-    np.testing.assert_allclose(p / PTU_STEP_RAD, np.round(p / PTU_STEP_RAD), atol=1e-6)  # whole steps
+    np.testing.assert_allclose(
+        p / PTU_STEP_RAD, np.round(p / PTU_STEP_RAD), atol=1e-6
+    )  # whole steps
     assert np.all(tilt == 0.0)
     assert np.all(np.abs(np.diff(p)) < 0.05)  # a smooth move, not a jump
 
@@ -95,12 +102,17 @@ def test_other_movers_do_what_their_scenarios_say() -> None:
     assert traj.position(stops.tau_end)[1] == pytest.approx(-4.15)
     assert np.allclose(traj.velocity(stops.tau_end - 1.0), 0.0)
     lead = SimulatedDrive("lead_car_driving_away", seed=0)
-    gap = [lead.movers[0].trajectory.position(tau)[0] - lead.path.pose(tau)[0] for tau in (0.0, 5.0, 10.0)]
+    gap = [
+        lead.movers[0].trajectory.position(tau)[0] - lead.path.pose(tau)[0]
+        for tau in (0.0, 5.0, 10.0)
+    ]
     assert gap[0] < gap[1] < gap[2]
     ahead = SimulatedDrive("car_crosses_ahead", seed=0)
     box = _mover_boxes(ahead, 1)
     seen = np.flatnonzero(np.isfinite(box[:, 0]))
-    assert len(seen) > 60 and box[seen[-1], 0] - box[seen[0], 0] > 200  # crosses the image left to right
+    assert (
+        len(seen) > 60 and box[seen[-1], 0] - box[seen[0], 0] > 200
+    )  # crosses the image left to right
 
 
 def test_body_bounce_is_a_few_tenths_of_a_degree_at_one_to_three_hertz() -> None:
@@ -117,17 +129,31 @@ def test_body_bounce_is_a_few_tenths_of_a_degree_at_one_to_three_hertz() -> None
 
 def test_camera_effects() -> None:
     flat = np.full((120, 160), 128, np.uint8)
-    noisy = EffectsPipeline(Effects(noise_sigma=1.5), np.random.default_rng(0)).apply(flat, 0.0, (0.0, 0.0))
+    noisy = EffectsPipeline(Effects(noise_sigma=1.5), np.random.default_rng(0)).apply(
+        flat, 0.0, (0.0, 0.0)
+    )
     assert np.std(noisy.astype(float)) == pytest.approx(1.5, rel=0.15)
     assert abs(noisy.mean() - 128) < 0.1
     fl = EffectsPipeline(Effects(flicker=0.04), np.random.default_rng(0))
     means = [fl.apply(flat, t, (0.0, 0.0)).mean() for t in np.arange(0, 2, 1 / 30)]
     assert np.ptp(means) > 128 * 0.04 and np.ptp(means) < 128 * 0.2
     bars = np.tile(np.repeat(np.array([60, 190], np.uint8), 4), (120, 20))
-    blurred = EffectsPipeline(Effects(blur_exposure=0.5), np.random.default_rng(0)).apply(bars, 0.0, (12.0, 0.0))
-    assert np.abs(np.diff(blurred.astype(float), axis=1)).mean() < 0.5 * np.abs(np.diff(bars.astype(float), axis=1)).mean()
-    assert np.array_equal(blurred[:, 40:], EffectsPipeline(Effects(blur_exposure=0.5), np.random.default_rng(9))
-                          .apply(bars, 0.0, (12.0, 0.0))[:, 40:])  # blur alone draws no random numbers
+    blurred = EffectsPipeline(Effects(blur_exposure=0.5), np.random.default_rng(0)).apply(
+        bars, 0.0, (12.0, 0.0)
+    )
+    assert (
+        np.abs(np.diff(blurred.astype(float), axis=1)).mean()
+        < 0.5 * np.abs(np.diff(bars.astype(float), axis=1)).mean()
+    )
+    assert np.array_equal(
+        blurred[:, 40:],
+        EffectsPipeline(Effects(blur_exposure=0.5), np.random.default_rng(9)).apply(
+            bars, 0.0, (12.0, 0.0)
+        )[:, 40:],
+    )  # blur alone draws no random numbers
     picks = [Effects.random(np.random.default_rng(s)) for s in range(40)]
     assert all(0.5 <= e.noise_sigma <= 2.0 for e in picks)
-    assert 5 < sum(e.flicker > 0 for e in picks) < 35 and 3 < sum(e.blur_exposure > 0 for e in picks) < 30
+    assert (
+        5 < sum(e.flicker > 0 for e in picks) < 35
+        and 3 < sum(e.blur_exposure > 0 for e in picks) < 30
+    )

@@ -1,1 +1,1 @@
-"""Synthetic drives: a textured 3-D world rendered through the camera model, written as recordings with truth."""
+"""Synthetic drives: a textured 3-D world through the camera model, as recordings with truth."""

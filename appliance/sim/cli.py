@@ -29,18 +29,30 @@ def main(args: argparse.Namespace) -> int:
     from appliance.sim.drive import simulate
 
     cfg = getattr(args, "cfg", None)
-    out = simulate(args.scenario, args.out, seed=args.seed, duration=args.duration, video=args.video,
-                   cfg=cfg, progress=sys.stderr.isatty())
+    out = simulate(
+        args.scenario,
+        args.out,
+        seed=args.seed,
+        duration=args.duration,
+        video=args.video,
+        cfg=cfg,
+        progress=sys.stderr.isatty(),
+    )
     rec = Recording(out)
     truth = rec.truth() or {}
     t = rec.frame_times
     coll = truth.get("collision_t")
-    print(f"wrote {out}: {args.scenario}, seed {args.seed}, {rec.n_frames} frames "
-          f"({rec.meta.camera.width}x{rec.meta.camera.height}, {args.video}), t {t[0]:.3f}-{t[-1]:.3f} s "
-          f"({t[-1] - t[0]:.2f} s)")
+    print(
+        f"wrote {out}: {args.scenario}, seed {args.seed}, {rec.n_frames} frames "
+        f"({rec.meta.camera.width}x{rec.meta.camera.height}, {args.video}), "
+        f"t {t[0]:.3f}-{t[-1]:.3f} s "
+        f"({t[-1] - t[0]:.2f} s)"
+    )
     if coll is None:
         print("collision_t: none (no collision)")
     else:
-        print(f"collision_t: {coll:.3f} s (object {truth.get('collision_object')}; "
-              f"the last frame is at {t[-1]:.3f} s)")
+        print(
+            f"collision_t: {coll:.3f} s (object {truth.get('collision_object')}; "
+            f"the last frame is at {t[-1]:.3f} s)"
+        )
     return 0

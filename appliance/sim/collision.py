@@ -58,7 +58,9 @@ def relative_velocity(ego: EgoPath, traj: Trajectory, tau: FloatArray) -> FloatA
     return np.stack([rx + w * centre[..., 1], ry - w * centre[..., 0]], axis=-1)
 
 
-def footprint_corners(centre: FloatArray, heading: FloatArray, length: float, width: float) -> FloatArray:
+def footprint_corners(
+    centre: FloatArray, heading: FloatArray, length: float, width: float
+) -> FloatArray:
     """Corners (T, 4, 2) of rectangles with the given centres (T, 2) and headings (T,)."""
     c, s = np.cos(heading)[..., None], np.sin(heading)[..., None]
     lx = np.array([1, -1, -1, 1]) * length / 2.0
@@ -67,11 +69,15 @@ def footprint_corners(centre: FloatArray, heading: FloatArray, length: float, wi
 
 
 def overlaps(corners: FloatArray, vehicle: Vehicle) -> NDArray[np.bool_]:
-    """Separating-axis test of the footprints (T, 4, 2) against the ego outline (touching counts)."""
+    """Separating-axis test of footprints (T, 4, 2) against the ego outline (touching counts)."""
     ego = vehicle.corners()
     inter = np.ones(corners.shape[0], bool)
-    axes = [np.broadcast_to([1.0, 0.0], (corners.shape[0], 2)), np.broadcast_to([0.0, 1.0], (corners.shape[0], 2)),
-            corners[:, 0] - corners[:, 1], corners[:, 1] - corners[:, 2]]
+    axes = [
+        np.broadcast_to([1.0, 0.0], (corners.shape[0], 2)),
+        np.broadcast_to([0.0, 1.0], (corners.shape[0], 2)),
+        corners[:, 0] - corners[:, 1],
+        corners[:, 1] - corners[:, 2],
+    ]
     for ax in axes:
         pa = np.einsum("tkj,tj->tk", corners, ax)
         pb = ego @ ax.T  # (4, T)
@@ -82,11 +88,12 @@ def overlaps(corners: FloatArray, vehicle: Vehicle) -> NDArray[np.bool_]:
 def _point_segment(p: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
     ab = b - a
     t = np.clip(np.sum((p - a) * ab, -1) / np.maximum(np.sum(ab * ab, -1), 1e-12), 0.0, 1.0)
-    return np.linalg.norm(p - (a + t[..., None] * ab), axis=-1)
+    out: FloatArray = np.linalg.norm(p - (a + t[..., None] * ab), axis=-1)
+    return out
 
 
 def gap(corners: FloatArray, vehicle: Vehicle) -> FloatArray:
-    """Distance (T,) m between the footprints (T, 4, 2) and the ego outline; 0 where they overlap."""
+    """Distance (T,) m between footprints (T, 4, 2) and the ego outline; 0 where they overlap."""
     ego = np.broadcast_to(vehicle.corners(), corners.shape)
     d = np.full(corners.shape[0], np.inf)
     for A, B in ((corners, ego), (ego, corners)):
@@ -97,8 +104,15 @@ def gap(corners: FloatArray, vehicle: Vehicle) -> FloatArray:
     return np.where(overlaps(corners, vehicle), 0.0, d)
 
 
-def collision_time(ego: EgoPath, traj: Trajectory, size: tuple[float, float, float], vehicle: Vehicle,
-                   tau_lo: float, tau_hi: float, dt: float = 0.002) -> float | None:
+def collision_time(
+    ego: EgoPath,
+    traj: Trajectory,
+    size: tuple[float, float, float],
+    vehicle: Vehicle,
+    tau_lo: float,
+    tau_hi: float,
+    dt: float = 0.002,
+) -> float | None:
     """First tau in [tau_lo, tau_hi] at which the footprint touches the ego outline, or None.
 
     Found on a ``dt`` grid and refined by bisection to 1e-7 s.
@@ -125,9 +139,16 @@ def collision_time(ego: EgoPath, traj: Trajectory, size: tuple[float, float, flo
     return hi
 
 
-def closest_approach(ego: EgoPath, traj: Trajectory, size: tuple[float, float, float], vehicle: Vehicle,
-                     tau_lo: float, tau_hi: float, dt: float = 0.005) -> tuple[float, float]:
-    """(smallest gap m, tau of it) between the footprint and the ego outline over [tau_lo, tau_hi]."""
+def closest_approach(
+    ego: EgoPath,
+    traj: Trajectory,
+    size: tuple[float, float, float],
+    vehicle: Vehicle,
+    tau_lo: float,
+    tau_hi: float,
+    dt: float = 0.005,
+) -> tuple[float, float]:
+    """(smallest gap m, its tau) between the footprint and the ego outline in [tau_lo, tau_hi]."""
     tau = np.arange(tau_lo, tau_hi + dt, dt)
     c, h = relative_pose(ego, traj, tau)
     g = gap(footprint_corners(c, h, size[0], size[1]), vehicle)

@@ -11,7 +11,7 @@ Recording clock: the first frame is at ``T0 = 1000.0`` s; CAN and PTU start
 from __future__ import annotations
 
 import zlib
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -35,7 +35,12 @@ from appliance.sim.scenarios import SCENARIOS, Plan
 from appliance.sim.street import Centreline, KeepClear, StreetBuilder
 from appliance.sim.truth import project_box, visible_fraction
 from appliance.sim.world import Body, StaticObject, box_faces
-from appliance.vision.geometry import PinholeCamera, relative_motion, rotational_flow, vehicle_from_camera
+from appliance.vision.geometry import (
+    PinholeCamera,
+    relative_motion,
+    rotational_flow,
+    vehicle_from_camera,
+)
 
 T0 = 1000.0  # s, recording-clock time of the first frame
 SENSOR_LEAD_S = 0.1  # s, CAN and PTU start this long before the first frame
@@ -82,14 +87,23 @@ class SimulatedDrive:
     :raises UsageError: unknown scenario, negative seed, bad duration.
     """
 
-    def __init__(self, scenario: str, seed: int, duration: float | None = None, cfg: Config | None = None,
-                 *, effects: Effects | None = None) -> None:
+    def __init__(
+        self,
+        scenario: str,
+        seed: int,
+        duration: float | None = None,
+        cfg: Config | None = None,
+        *,
+        effects: Effects | None = None,
+    ) -> None:
         if scenario not in SCENARIOS:
             raise UsageError(f"unknown scenario {scenario!r} (known: {', '.join(SCENARIOS)})")
         if seed < 0:
             raise UsageError(f"--seed must be >= 0, got {seed}")
         if duration is not None and not 0.0 < duration <= MAX_DURATION_S:
-            raise UsageError(f"--duration must be > 0 and <= {MAX_DURATION_S:g} s, got {duration:g}")
+            raise UsageError(
+                f"--duration must be > 0 and <= {MAX_DURATION_S:g} s, got {duration:g}"
+            )
         self.cfg = cfg if cfg is not None else load_config()
         self.name, self.seed = scenario, seed
         m = self.cfg.mount
@@ -106,20 +120,35 @@ class SimulatedDrive:
         c = self.cfg.camera
         self.camera = PinholeCamera(c.width, c.height, c.fx, c.fy, c.cx, c.cy, tuple(c.distortion))
         self.meta = RecordingMeta(
-            camera=self.camera, mount=m,
-            can=CanDecoding(str(resource_path("vehicle.dbc")), "VEHICLE_SPEED.SPEED", "km/h",
-                            "YAW_RATE.YAW_RATE", "deg/s", 1),
-            extra={"simulator": {"scenario": scenario, "seed": seed, "duration_s": _r(self.duration, 6),
-                                 "version": __version__}},
+            camera=self.camera,
+            mount=m,
+            can=CanDecoding(
+                str(resource_path("vehicle.dbc")),
+                "VEHICLE_SPEED.SPEED",
+                "km/h",
+                "YAW_RATE.YAW_RATE",
+                "deg/s",
+                1,
+            ),
+            extra={
+                "simulator": {
+                    "scenario": scenario,
+                    "seed": seed,
+                    "duration_s": _r(self.duration, 6),
+                    "version": __version__,
+                }
+            },
         )
         self.truth_header: dict[str, Any] = {
             "scenario": scenario,
             "collision": self.collision_tau is not None,
             "collision_t": None if self.collision_tau is None else self.clock(self.collision_tau),
             "collision_object": self.collision_object,
-            "objects": [{"id": o.body.obj, "class": o.body.kind, "moving": o.trajectory.moves()}
-                        for o in self.movers]
-                       + [{"id": s.body.obj, "class": s.body.kind, "moving": False} for s in self.parked],
+            "objects": [
+                {"id": o.body.obj, "class": o.body.kind, "moving": o.trajectory.moves()}
+                for o in self.movers
+            ]
+            + [{"id": s.body.obj, "class": s.body.kind, "moving": False} for s in self.parked],
         }
 
     # ------------------------------------------------------------ set-up
@@ -127,8 +156,10 @@ class SimulatedDrive:
     def _timeline(self, duration: float | None, rng: np.random.Generator) -> None:
         plan = self.plan
         probe = EgoPath(plan.ego, -5.0, 80.0)
-        hits = [(collision_time(probe, mv.trajectory, SIZES[mv.kind], self.vehicle, -5.0, 75.0), k)
-                for k, mv in enumerate(plan.movers)]
+        hits = [
+            (collision_time(probe, mv.trajectory, SIZES[mv.kind], self.vehicle, -5.0, 75.0), k)
+            for k, mv in enumerate(plan.movers)
+        ]
         found = sorted((t, k) for t, k in hits if t is not None)
         if plan.end_s is None:
             if not found:
@@ -142,8 +173,20 @@ class SimulatedDrive:
         self.frame_offsets = sensors.frame_times(rng, n)
         self.frame_offsets[-1] = max(self.frame_offsets[-1], (n - 1) / sensors.FPS)
         self.path = EgoPath(plan.ego, self.tau_start - 2.0, self.tau_end + 12.0)
-        hits = [(collision_time(self.path, mv.trajectory, SIZES[mv.kind], self.vehicle,
-                                self.tau_start, self.tau_end + 10.0), k) for k, mv in enumerate(plan.movers)]
+        hits = [
+            (
+                collision_time(
+                    self.path,
+                    mv.trajectory,
+                    SIZES[mv.kind],
+                    self.vehicle,
+                    self.tau_start,
+                    self.tau_end + 10.0,
+                ),
+                k,
+            )
+            for k, mv in enumerate(plan.movers)
+        ]
         found = sorted((t, k) for t, k in hits if t is not None)
         self.collision_tau = found[0][0] if found else None
         self.collision_object = found[0][1] + 1 if found else None
@@ -154,17 +197,30 @@ class SimulatedDrive:
         keep = []
         for k, mv in enumerate(self.plan.movers):
             size = SIZES[mv.kind]
-            body = Body(k + 1, mv.kind, size, box_faces(*size, self.bank.skin(mv.kind, k), self.bank.textures, k + 1))
+            body = Body(
+                k + 1,
+                mv.kind,
+                size,
+                box_faces(*size, self.bank.skin(mv.kind, k), self.bank.textures, k + 1),
+            )
             self.movers.append(Mover(body, mv.trajectory))
             taus = np.arange(self.tau_start - 1.0, self.tau_end + 5.0, 0.05)
-            keep.append(KeepClear(mv.trajectory.position(taus), 0.5 * float(np.hypot(size[0], size[1])) + 0.4))
+            keep.append(
+                KeepClear(
+                    mv.trajectory.position(taus), 0.5 * float(np.hypot(size[0], size[1])) + 0.4
+                )
+            )
         s_lo = float(self.path.arc_length(self.tau_start)) - 60.0
         s_hi = float(self.path.arc_length(self.tau_end)) + 200.0
-        builder = StreetBuilder(self.plan.street, Centreline(self.path), self.bank, rng_layout, keep)
+        builder = StreetBuilder(
+            self.plan.street, Centreline(self.path), self.bank, rng_layout, keep
+        )
         self.static_faces, statics = builder.build(s_lo, s_hi)
         self.statics: list[StaticObject] = statics
         self.parked: list[StaticObject] = [s for s in statics if s.body.kind == "car"]
-        self._parked_corners = np.array([s.body.corners(s.x, s.y, s.yaw) for s in self.parked]).reshape(-1, 8, 3)
+        self._parked_corners = np.array(
+            [s.body.corners(s.x, s.y, s.yaw) for s in self.parked]
+        ).reshape(-1, 8, 3)
 
     def _sensors(self, rng: np.random.Generator) -> None:
         t_first, t_last = T0 - SENSOR_LEAD_S, T0 + float(self.frame_offsets[-1])
@@ -174,11 +230,20 @@ class SimulatedDrive:
         ty = ts + 0.01
         ty = ty[ty <= t_last]
         tau_s, tau_y = self.tau(ts), self.tau(ty)
-        self._can = vcan.messages(ts, self.plan.ego.speed_at(tau_s), self.plan.ego.yaw_rate_at(tau_s),
-                                  ty, self.plan.ego.yaw_rate_at(tau_y))
+        self._can = vcan.messages(
+            ts,
+            self.plan.ego.speed_at(tau_s),
+            self.plan.ego.yaw_rate_at(tau_s),
+            ty,
+            self.plan.ego.yaw_rate_at(tau_y),
+        )
         tp = sensors.ptu_samples(rng, t_first, t_last)
         pan, tilt = self.plan.ptu.at(self.tau(tp))
-        self._ptu = list(zip(tp.tolist(), sensors.quantise_ptu(pan).tolist(), sensors.quantise_ptu(tilt).tolist()))
+        self._ptu = list(
+            zip(
+                tp.tolist(), sensors.quantise_ptu(pan).tolist(), sensors.quantise_ptu(tilt).tolist()
+            )
+        )
 
     # ------------------------------------------------------------ time
 
@@ -217,10 +282,16 @@ class SimulatedDrive:
         pitch, roll, heave = self.bounce.at(tau)
         pan, tilt = self.plan.ptu.at(tau)
         m = self.cfg.mount
-        T_wv = world_from_vehicle(float(x), float(y), float(psi), float(pitch), float(roll), float(heave))
-        return T_wv @ vehicle_from_camera((m.x_m, m.y_m, m.z_m), m.pitch_rad, float(pan), float(tilt))
+        T_wv = world_from_vehicle(
+            float(x), float(y), float(psi), float(pitch), float(roll), float(heave)
+        )
+        return T_wv @ vehicle_from_camera(
+            (m.x_m, m.y_m, m.z_m), m.pitch_rad, float(pan), float(tilt)
+        )
 
-    def _object_truth(self, tau: float, T_cw: NDArray[np.float64], ids: NDArray[np.uint16]) -> dict[str, Any]:
+    def _object_truth(
+        self, tau: float, T_cw: NDArray[np.float64], ids: NDArray[np.uint16]
+    ) -> dict[str, Any]:
         """Truth of every mover and parked car whose box projects into the image."""
         out: dict[str, Any] = {}
         tau_a = np.array([tau])
@@ -243,8 +314,13 @@ class SimulatedDrive:
         zc = np.maximum(z, 0.3)
         u = cam.fx * Pc[..., 0] / zc + cam.cx
         v = cam.fy * Pc[..., 1] / zc + cam.cy
-        inside = ahead & (u.max(1) >= -50) & (u.min(1) <= cam.width + 50) & (v.max(1) >= -50) & \
-            (v.min(1) <= cam.height + 50)
+        inside = (
+            ahead
+            & (u.max(1) >= -50)
+            & (u.min(1) <= cam.width + 50)
+            & (v.max(1) >= -50)
+            & (v.min(1) <= cam.height + 50)
+        )
         x, y, psi = (float(a) for a in self.path.pose(tau))
         vx, vy = (float(a) for a in self.path.velocity(tau))
         w = float(self.plan.ego.yaw_rate_at(tau))
@@ -257,13 +333,19 @@ class SimulatedDrive:
             dx, dy = obj.x - x, obj.y - y
             px, py = c * dx + sn * dy, -sn * dx + c * dy
             rvx, rvy = -(c * vx + sn * vy), -(-sn * vx + c * vy)
-            out[str(obj.body.obj)] = self._record(view, ids, obj.body.obj, np.array([px, py]),
-                                                  np.array([rvx + w * py, rvy - w * px]))
+            out[str(obj.body.obj)] = self._record(
+                view, ids, obj.body.obj, np.array([px, py]), np.array([rvx + w * py, rvy - w * px])
+            )
         return out
 
     @staticmethod
-    def _record(view: Any, ids: NDArray[np.uint16], obj: int, pos: NDArray[np.float64],
-                vel: NDArray[np.float64]) -> dict[str, Any]:
+    def _record(
+        view: Any,
+        ids: NDArray[np.uint16],
+        obj: int,
+        pos: NDArray[np.float64],
+        vel: NDArray[np.float64],
+    ) -> dict[str, Any]:
         return {
             "bbox": [_r(b, 2) for b in view.bbox],
             "visible": _r(visible_fraction(view, ids, obj), 3),
@@ -276,17 +358,20 @@ class SimulatedDrive:
     def _renderer(self) -> Renderer:
         return Renderer(self.camera, self.bank.textures, self.bank["asphalt"])
 
-    def _render(self, renderer: Renderer, k: int) -> tuple[float, NDArray[np.float64], NDArray[np.uint8],
-                                                           NDArray[np.uint16], dict[str, Any]]:
+    def _render(
+        self, renderer: Renderer, k: int
+    ) -> tuple[float, NDArray[np.float64], NDArray[np.uint8], NDArray[np.uint16], dict[str, Any]]:
         """(t, world-from-camera, clean image, ids, truth) of frame k."""
         t = self.frame_time(k)
         tau = float(self.tau(t))
         T_wc = self.camera_pose(tau)
-        T_cw = np.linalg.inv(T_wc)
+        T_cw = np.asarray(np.linalg.inv(T_wc), np.float64)
         faces = [self.static_faces]
         for mv in self.movers:
             p = mv.trajectory.position(tau)
-            faces.append(mv.body.placed(float(p[0]), float(p[1]), float(mv.trajectory.heading(tau))))
+            faces.append(
+                mv.body.placed(float(p[0]), float(p[1]), float(mv.trajectory.heading(tau)))
+            )
         image, ids = renderer.render(T_cw, faces)
         pose = [[round(float(v), 10) for v in row] for row in T_wc]
         truth = {"camera_pose": pose, "objects": self._object_truth(tau, T_cw, ids)}
@@ -325,10 +410,20 @@ class SimulatedDrive:
             can_i, ptu_i = can_j, ptu_j
 
 
-def simulate(scenario: str, out_dir: str | Path, seed: int = 0, duration: float | None = None,
-             video: str = "mkv", cfg: Config | None = None, *, effects: Effects | None = None,
-             progress: bool = False) -> Path:
-    """Write the drive as a recording (spec: "Drive recording") with ``truth.json``; returns its path.
+def simulate(
+    scenario: str,
+    out_dir: str | Path,
+    seed: int = 0,
+    duration: float | None = None,
+    video: str = "mkv",
+    cfg: Config | None = None,
+    *,
+    effects: Effects | None = None,
+    progress: bool = False,
+) -> Path:
+    """Write the drive as a recording (spec: "Drive recording") with ``truth.json``.
+
+    Returns the recording's path.
 
     :raises UsageError: bad arguments or a non-empty output directory.
     """
@@ -338,15 +433,33 @@ def simulate(scenario: str, out_dir: str | Path, seed: int = 0, duration: float 
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise UsageError(f"{out}: output directory exists and is not empty")
     drive = SimulatedDrive(scenario, seed, duration, cfg, effects=effects)
-    objects: dict[int, dict[str, Any]] = {o["id"]: dict(o, frames={}) for o in drive.truth_header["objects"]}
+    return write_recording(drive, out, video, progress)
+
+
+def write_recording(
+    drive: SimulatedDrive,
+    out_dir: str | Path,
+    video: str = "mkv",
+    progress: bool = False,
+    steps: Iterable[SimStep] | None = None,
+) -> Path:
+    """Stream ``drive`` (or the given ``steps`` of it) into a new recording directory.
+
+    ``truth.json`` is written last: a killed simulator leaves a recording the reader rejects
+    (frame count) and without truth.
+    """
+    out = Path(out_dir)
+    objects: dict[int, dict[str, Any]] = {
+        o["id"]: dict(o, frames={}) for o in drive.truth_header["objects"]
+    }
     poses: dict[str, Any] = {}
-    steps: Any = drive
+    it: Iterable[SimStep] = drive if steps is None else steps
     if progress:
         from tqdm import tqdm
 
-        steps = tqdm(drive, total=drive.n_frames, unit="frame", desc=scenario, leave=False)
+        it = tqdm(it, total=drive.n_frames, unit="frame", desc=drive.name, leave=False)
     with RecordingWriter(out, drive.meta, video=video, fps=sensors.FPS) as w:
-        for step in steps:
+        for step in it:
             w.write_frame(step.image, step.t)
             for msg in step.can_messages:
                 w.write_can(msg)
@@ -355,7 +468,10 @@ def simulate(scenario: str, out_dir: str | Path, seed: int = 0, duration: float 
             poses[str(step.index)] = step.truth_frame["camera_pose"]
             for oid, rec in step.truth_frame["objects"].items():
                 objects[int(oid)]["frames"][str(step.index)] = rec
-        truth = {k: drive.truth_header[k] for k in ("scenario", "collision", "collision_t", "collision_object")}
+        truth = {
+            k: drive.truth_header[k]
+            for k in ("scenario", "collision", "collision_t", "collision_object")
+        }
         truth["seed"] = drive.seed
         truth["objects"] = [o for o in objects.values() if o["frames"] or o["moving"]]
         truth["camera_poses"] = poses

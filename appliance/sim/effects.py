@@ -29,9 +29,11 @@ class Effects:
     @staticmethod
     def random(rng: np.random.Generator) -> Effects:
         """Always some noise; flicker on about half the seeds, motion blur on about a third."""
-        return Effects(noise_sigma=float(rng.uniform(0.5, 2.0)),
-                       flicker=float(rng.uniform(0.01, 0.04)) if rng.random() < 0.5 else 0.0,
-                       blur_exposure=float(rng.uniform(0.2, 0.5)) if rng.random() < 0.35 else 0.0)
+        return Effects(
+            noise_sigma=float(rng.uniform(0.5, 2.0)),
+            flicker=float(rng.uniform(0.01, 0.04)) if rng.random() < 0.5 else 0.0,
+            blur_exposure=float(rng.uniform(0.2, 0.5)) if rng.random() < 0.35 else 0.0,
+        )
 
 
 class EffectsPipeline:
@@ -58,15 +60,27 @@ class EffectsPipeline:
                 c = n // 2
                 p0 = (c - du / 2.0, c - dv / 2.0)
                 p1 = (c + du / 2.0, c + dv / 2.0)
-                cv2.line(k, (int(round(p0[0] * 16)), int(round(p0[1] * 16))),
-                         (int(round(p1[0] * 16)), int(round(p1[1] * 16))), 1.0, 1, cv2.LINE_AA, 4)
+                cv2.line(
+                    k,
+                    (int(round(p0[0] * 16)), int(round(p0[1] * 16))),
+                    (int(round(p1[0] * 16)), int(round(p1[1] * 16))),
+                    1.0,
+                    1,
+                    cv2.LINE_AA,
+                    4,
+                )
                 k /= max(float(k.sum()), 1e-6)
-                img = cv2.filter2D(img, -1, k, borderType=cv2.BORDER_REPLICATE)
+                img = np.asarray(
+                    cv2.filter2D(img, -1, k, borderType=cv2.BORDER_REPLICATE), np.uint8
+                )
         if fx.flicker > 0.0:
-            gain = 1.0 + fx.flicker * (0.7 * np.sin(2 * np.pi * 1.3 * t + self._phase)
-                                       + 0.3 * float(self.rng.standard_normal()))
-            img = cv2.convertScaleAbs(img, alpha=float(gain))
+            gain = 1.0 + fx.flicker * (
+                0.7 * np.sin(2 * np.pi * 1.3 * t + self._phase)
+                + 0.3 * float(self.rng.standard_normal())
+            )
+            img = np.asarray(cv2.convertScaleAbs(img, alpha=float(gain)), np.uint8)
         if fx.noise_sigma > 0.0:
             u = self.rng.integers(0, 256, img.shape, dtype=np.uint8)
-            img = cv2.subtract(cv2.add(img, cv2.LUT(u, self._pos)), cv2.LUT(u, self._neg))
+            noisy = cv2.subtract(cv2.add(img, cv2.LUT(u, self._pos)), cv2.LUT(u, self._neg))
+            img = np.asarray(noisy, np.uint8)
         return img

@@ -31,7 +31,8 @@ _DT = 0.001  # s, integration step of the road-level path
 def _profile(breaks: tuple[tuple[float, float], ...], tau: FloatArray) -> FloatArray:
     t = np.array([b[0] for b in breaks], float)
     v = np.array([b[1] for b in breaks], float)
-    return np.interp(tau, t, v)
+    out: FloatArray = np.interp(tau, t, v)
+    return out
 
 
 @dataclass(frozen=True)
@@ -63,7 +64,7 @@ class EgoPath:
         lo = min(tau_lo, 0.0) - 1.0
         hi = max(tau_hi, 0.0) + 1.0
         n = int(np.ceil((hi - lo) / _DT)) + 1
-        self.tau = lo + _DT * np.arange(n)
+        self.tau: FloatArray = lo + _DT * np.arange(n, dtype=np.float64)
         i0 = int(round(-lo / _DT))
         self.tau[i0] = 0.0
         v = plan.speed_at(self.tau)
@@ -83,8 +84,11 @@ class EgoPath:
     def pose(self, tau: FloatArray | float) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Road-level (x, y, heading) at ``tau`` (world frame, m and rad)."""
         tau = np.asarray(tau, float)
-        return (np.interp(tau, self.tau, self.x), np.interp(tau, self.tau, self.y),
-                np.interp(tau, self.tau, self.psi))
+        return (
+            np.interp(tau, self.tau, self.x),
+            np.interp(tau, self.tau, self.y),
+            np.interp(tau, self.tau, self.psi),
+        )
 
     def velocity(self, tau: FloatArray | float) -> tuple[FloatArray, FloatArray]:
         """World velocity (vx, vy), m/s."""
@@ -93,12 +97,14 @@ class EgoPath:
         return v * np.cos(psi), v * np.sin(psi)
 
     def arc_length(self, tau: FloatArray | float) -> FloatArray:
-        return np.interp(np.asarray(tau, float), self.tau, self.s)
+        out: FloatArray = np.interp(np.asarray(tau, float), self.tau, self.s)
+        return out
 
 
 @dataclass(frozen=True)
 class Oscillation:
-    """``amplitude * sin(2 pi f (tau - start) + phase)``, damped by ``exp(-zeta 2 pi f (tau - start))``
+    """``amplitude * sin(2 pi f (tau - start) + phase)``,
+    damped by ``exp(-zeta 2 pi f (tau - start))``
     after ``start`` (``zeta = 0``: a steady oscillation for all tau)."""
 
     amplitude: float
@@ -130,14 +136,32 @@ class BodyBounce:
         """Road-induced bounce: steady 1-3 Hz pitching of a few tenths of a degree,
         plus bumps (damped 1.2-2 Hz responses) of up to about one degree."""
         deg = np.pi / 180.0
-        pitch = [Oscillation(float(rng.uniform(0.08, 0.25)) * deg, float(rng.uniform(1.0, 1.6)),
-                             float(rng.uniform(0, 2 * np.pi))),
-                 Oscillation(float(rng.uniform(0.04, 0.12)) * deg, float(rng.uniform(2.0, 3.0)),
-                             float(rng.uniform(0, 2 * np.pi)))]
-        roll = [Oscillation(float(rng.uniform(0.05, 0.15)) * deg, float(rng.uniform(1.0, 2.0)),
-                            float(rng.uniform(0, 2 * np.pi)))]
-        heave = [Oscillation(float(rng.uniform(0.004, 0.012)), float(rng.uniform(1.2, 2.0)),
-                             float(rng.uniform(0, 2 * np.pi)))]
+        pitch = [
+            Oscillation(
+                float(rng.uniform(0.08, 0.25)) * deg,
+                float(rng.uniform(1.0, 1.6)),
+                float(rng.uniform(0, 2 * np.pi)),
+            ),
+            Oscillation(
+                float(rng.uniform(0.04, 0.12)) * deg,
+                float(rng.uniform(2.0, 3.0)),
+                float(rng.uniform(0, 2 * np.pi)),
+            ),
+        ]
+        roll = [
+            Oscillation(
+                float(rng.uniform(0.05, 0.15)) * deg,
+                float(rng.uniform(1.0, 2.0)),
+                float(rng.uniform(0, 2 * np.pi)),
+            )
+        ]
+        heave = [
+            Oscillation(
+                float(rng.uniform(0.004, 0.012)),
+                float(rng.uniform(1.2, 2.0)),
+                float(rng.uniform(0, 2 * np.pi)),
+            )
+        ]
         n_bumps = int(rng.poisson(0.3 * (tau_hi - tau_lo)))
         for start in np.sort(rng.uniform(tau_lo, tau_hi, n_bumps)):
             f = float(rng.uniform(1.2, 2.0))
@@ -151,12 +175,16 @@ class BodyBounce:
         """(pitch, roll, heave) at ``tau``."""
         tau = np.asarray(tau, float)
         zero = np.zeros_like(tau)
-        return (sum((o(tau) for o in self.pitch), zero), sum((o(tau) for o in self.roll), zero),
-                sum((o(tau) for o in self.heave), zero))
+        return (
+            sum((o(tau) for o in self.pitch), zero),
+            sum((o(tau) for o in self.roll), zero),
+            sum((o(tau) for o in self.heave), zero),
+        )
 
 
-def world_from_vehicle(x: float, y: float, psi: float, pitch: float = 0.0, roll: float = 0.0,
-                       heave: float = 0.0) -> FloatArray:
+def world_from_vehicle(
+    x: float, y: float, psi: float, pitch: float = 0.0, roll: float = 0.0, heave: float = 0.0
+) -> FloatArray:
     """4x4 world-from-vehicle transform: ``T(x, y, heave) Rz(psi) Ry(pitch) Rx(roll)``."""
     T = np.eye(4)
     T[:3, :3] = euler_to_matrix(np.array([roll, pitch, psi]))
@@ -166,7 +194,7 @@ def world_from_vehicle(x: float, y: float, psi: float, pitch: float = 0.0, roll:
 
 @dataclass(frozen=True)
 class PtuMove:
-    """Move to (pan, tilt) rad, starting at ``start`` s and taking ``duration`` s (smooth cosine ramp)."""
+    """Move to (pan, tilt) rad from ``start`` s, taking ``duration`` s (smooth cosine ramp)."""
 
     start: float
     duration: float

@@ -58,7 +58,7 @@ class TextureBank:
 
     @staticmethod
     def for_seed(seed: int) -> TextureBank:
-        """The bank of a seed (same seed, same textures in every scenario); cached, never modified."""
+        """The bank of a seed (same seed, same textures in every scenario); cached, read-only."""
         return _bank_for_seed(seed)
 
     # ------------------------------------------------------------ skins

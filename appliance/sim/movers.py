@@ -102,8 +102,17 @@ class MoverPlan:
     label: str = ""
 
 
-def crossing_course(*, ego_speed: float, aim_x: float, mover_speed: float, from_right: bool,
-                    aim_y: float, aim_tau: float, start_y: float, end_y: float) -> Trajectory:
+def crossing_course(
+    *,
+    ego_speed: float,
+    aim_x: float,
+    mover_speed: float,
+    from_right: bool,
+    aim_y: float,
+    aim_tau: float,
+    start_y: float,
+    end_y: float,
+) -> Trajectory:
     """A mover crossing the ego's path perpendicularly on an exact collision course.
 
     The ego drives along world +x at ``ego_speed`` m/s from x = 0 at tau = 0.
@@ -135,11 +144,17 @@ def stand_then_cross(traj: Trajectory, stand_from: float) -> Trajectory:
 def stop_at(traj: Trajectory, stop_y: float, decel_s: float = 0.5) -> Trajectory:
     """The same course, but the mover stops at lateral position ``stop_y`` (decelerating over
     ``decel_s``, modelled as half speed for that time) and then stands."""
-    (t0, x0, y0), (t1, x1, y1) = traj.waypoints[0], traj.waypoints[1]
+    (t0, x0, y0), (t1, _, y1) = traj.waypoints[0], traj.waypoints[1]
     vy = (y1 - y0) / (t1 - t0)
     t_stop = t0 + (stop_y - y0) / vy
     y_slow = stop_y - 0.5 * vy * decel_s
     t_slow = t_stop - 0.5 * decel_s
     pre = tuple(w for w in traj.waypoints if w[0] < t_slow and w[0] < t0 + 1e-9)
-    return Trajectory(pre + ((t_slow, x0, y_slow), (t_slow + decel_s, x0, stop_y),
-                             (t_slow + decel_s + 60.0, x0, stop_y)))
+    return Trajectory(
+        pre
+        + (
+            (t_slow, x0, y_slow),
+            (t_slow + decel_s, x0, stop_y),
+            (t_slow + decel_s + 60.0, x0, stop_y),
+        )
+    )

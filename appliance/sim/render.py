@@ -22,11 +22,10 @@ lens distortion.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
-
 import bisect
 import math
+from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import cv2
@@ -87,15 +86,22 @@ def _clip(poly: list[Point], zc: float, keep_above: bool) -> list[Point]:
             out.append(a)
         if (da >= 0.0) != (db >= 0.0):
             s = da / (da - db)
-            out.append((a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1]), a[2] + s * (b[2] - a[2])))
+            out.append(
+                (a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1]), a[2] + s * (b[2] - a[2]))
+            )
     return out
 
 
 class Renderer:
     """Renders frames of one camera; holds the reusable buffers (not thread-safe)."""
 
-    def __init__(self, camera: PinholeCamera, textures: Sequence[Texture], ground_texture: int,
-                 settings: RenderSettings | None = None) -> None:
+    def __init__(
+        self,
+        camera: PinholeCamera,
+        textures: Sequence[Texture],
+        ground_texture: int,
+        settings: RenderSettings | None = None,
+    ) -> None:
         self.camera = camera
         self.textures = list(textures)
         self.ground_texture = ground_texture
@@ -105,7 +111,9 @@ class Renderer:
         self.K = camera.K
         rows = np.arange(H, dtype=np.float32)[:, None]
         self.sky = np.repeat(np.clip(212.0 - 30.0 * rows / H, 0, 255).astype(np.uint8), W, axis=1)
-        self.col_grid = np.ascontiguousarray(np.broadcast_to(np.arange(W, dtype=np.float32), (H, W)))
+        self.col_grid = np.ascontiguousarray(
+            np.broadcast_to(np.arange(W, dtype=np.float32), (H, W))
+        )
         self.row_grid = np.ascontiguousarray(np.broadcast_to(rows, (H, W)))
         self.zbuf = np.zeros((H, W), np.float32)
         self.slab_z = self._slab_boundaries()
@@ -114,8 +122,9 @@ class Renderer:
         self._mean = {i: float(tex.levels[-1][-1].mean()) for i, tex in enumerate(self.textures)}
         self._maps: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None
         if camera.has_distortion:
-            grid = np.stack(np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64)),
-                            axis=-1).reshape(-1, 2)
+            grid = np.stack(
+                np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64)), axis=-1
+            ).reshape(-1, 2)
             ideal = camera.undistort(grid).reshape(H, W, 2).astype(np.float32)
             self._maps = (np.ascontiguousarray(ideal[..., 0]), np.ascontiguousarray(ideal[..., 1]))
 
@@ -132,8 +141,9 @@ class Renderer:
 
     # ------------------------------------------------------------ per frame
 
-    def render(self, camera_from_world: FloatArray, face_sets: Sequence[FaceSet]
-               ) -> tuple[NDArray[np.uint8], NDArray[np.uint16]]:
+    def render(
+        self, camera_from_world: FloatArray, face_sets: Sequence[FaceSet]
+    ) -> tuple[NDArray[np.uint8], NDArray[np.uint16]]:
         """Image (H, W) uint8 and object ids (H, W) uint16 seen by a camera at this pose.
 
         ``camera_from_world`` is the 4x4 inverse of the camera pose.
@@ -153,10 +163,26 @@ class Renderer:
         for job in jobs:
             self._draw_face(img, ids, job)
         if self._maps is not None:
-            img = cv2.remap(img, self._maps[0], self._maps[1], cv2.INTER_LINEAR,
-                            borderMode=cv2.BORDER_REPLICATE)
-            ids = cv2.remap(ids, self._maps[0], self._maps[1], cv2.INTER_NEAREST,
-                            borderMode=cv2.BORDER_REPLICATE)
+            img = np.asarray(
+                cv2.remap(
+                    img,
+                    self._maps[0],
+                    self._maps[1],
+                    cv2.INTER_LINEAR,
+                    borderMode=cv2.BORDER_REPLICATE,
+                ),
+                np.uint8,
+            )
+            ids = np.asarray(
+                cv2.remap(
+                    ids,
+                    self._maps[0],
+                    self._maps[1],
+                    cv2.INTER_NEAREST,
+                    borderMode=cv2.BORDER_REPLICATE,
+                ),
+                np.uint16,
+            )
         return img, ids
 
     def _jobs(self, fs: FaceSet, R: FloatArray, t: FloatArray) -> list[_Job]:
@@ -179,9 +205,19 @@ class Renderer:
         key = np.where(upright, z[idx].min(1), -z[idx].max(1))
         o_c = fs.origin[idx] @ R.T + t
         eu_c, ev_c = fs.eu[idx] @ R.T, fs.ev[idx] @ R.T
-        cols = zip(Pc[idx].tolist(), n_c[idx].tolist(), o_c.tolist(), eu_c.tolist(), ev_c.tolist(),
-                   fs.texel[idx].tolist(), fs.texture[idx].tolist(), fs.obj[idx].tolist(),
-                   fs.value[idx].tolist(), fs.layer[idx].tolist(), key.tolist())
+        cols = zip(
+            Pc[idx].tolist(),
+            n_c[idx].tolist(),
+            o_c.tolist(),
+            eu_c.tolist(),
+            ev_c.tolist(),
+            fs.texel[idx].tolist(),
+            fs.texture[idx].tolist(),
+            fs.obj[idx].tolist(),
+            fs.value[idx].tolist(),
+            fs.layer[idx].tolist(),
+            key.tolist(),
+        )
         return [_Job(*c) for c in cols]
 
     def _ground_jobs(self, img: NDArray[np.uint8], R: FloatArray, t: FloatArray) -> list[_Job]:
@@ -190,23 +226,46 @@ class Renderer:
         cx, cy = float(cam_w[0]), float(cam_w[1])
         s = self.s
         far = 20.0 * s.far_m
-        quad = np.array([[cx - far, cy - far, 0], [cx + far, cy - far, 0], [cx + far, cy + far, 0],
-                         [cx - far, cy + far, 0]], float) @ R.T + t
+        quad = (
+            np.array(
+                [
+                    [cx - far, cy - far, 0],
+                    [cx + far, cy - far, 0],
+                    [cx + far, cy + far, 0],
+                    [cx - far, cy + far, 0],
+                ],
+                float,
+            )
+            @ R.T
+            + t
+        )
         poly = _clip([tuple(p) for p in quad.tolist()], s.far_m * 0.95, True)
         if len(poly) >= 3:
             cv2.fillPoly(img, [self._pts(poly)[0]], int(s.haze), cv2.LINE_8, 4)
         e = s.ground_extent_m
-        corners = np.array([[cx - e, cy - e, 0], [cx + e, cy - e, 0], [cx + e, cy + e, 0],
-                            [cx - e, cy + e, 0]], float)
+        corners = np.array(
+            [[cx - e, cy - e, 0], [cx + e, cy - e, 0], [cx + e, cy + e, 0], [cx - e, cy + e, 0]],
+            float,
+        )
         tex = self.textures[self.ground_texture]
-        ground = FaceSet(corners[None], np.array([[0, 0, 1.0]]), np.zeros((1, 3)),
-                         np.array([[1.0, 0, 0]]), np.array([[0, 1.0, 0]]), np.array([tex.texel_m]),
-                         np.array([self.ground_texture]), np.array([int(Layer.GROUND)]),
-                         np.array([0]), np.array([0.0]), np.array([False]))
+        ground = FaceSet(
+            corners[None],
+            np.array([[0, 0, 1.0]]),
+            np.zeros((1, 3)),
+            np.array([[1.0, 0, 0]]),
+            np.array([[0, 1.0, 0]]),
+            np.array([tex.texel_m]),
+            np.array([self.ground_texture]),
+            np.array([int(Layer.GROUND)]),
+            np.array([0]),
+            np.array([0.0]),
+            np.array([False]),
+        )
         return self._jobs(ground, R, t)
 
-    def _pts(self, poly: Sequence[Point], x0: int = 0, y0: int = 0
-             ) -> tuple[NDArray[np.int32], tuple[float, float, float, float]]:
+    def _pts(
+        self, poly: Sequence[Point], x0: int = 0, y0: int = 0
+    ) -> tuple[NDArray[np.int32], tuple[float, float, float, float]]:
         """fillPoly vertices (sub-pixel, relative to (x0, y0)) and the pixel bounds of a polygon."""
         fx, fy, cx, cy = self._k
         u = [fx * p[0] / p[2] + cx for p in poly]
@@ -227,18 +286,22 @@ class Renderer:
             zmax = s.far_m
         if len(poly) < 3:
             return
-        if job.texture == FLAT and job.layer != Layer.UPRIGHT:  # markings, kerbs: one anti-aliased polygon
+        if (
+            job.texture == FLAT and job.layer != Layer.UPRIGHT
+        ):  # markings, kerbs: one anti-aliased polygon
             fog = self._fog(0.5 * (zmin + zmax))
             val = (1.0 - fog) * job.value + fog * s.haze
             cv2.fillPoly(img, [self._pts(poly)[0]], int(round(val)), cv2.LINE_AA, 4)
             return
         k0 = max(bisect.bisect_right(self._slab_list, zmin) - 1, 0)
         k1 = bisect.bisect_left(self._slab_list, zmax)
-        bounds = self._slab_list[k0:k1 + 1]
+        bounds = self._slab_list[k0 : k1 + 1]
         if len(bounds) < 2:
             bounds = [zmin, zmax]
         bounds[0], bounds[-1] = zmin, zmax
-        if len(bounds) > 2 and bounds[-1] / bounds[-2] < 1.08:  # merge slivers into their neighbours
+        if (
+            len(bounds) > 2 and bounds[-1] / bounds[-2] < 1.08
+        ):  # merge slivers into their neighbours
             del bounds[-2]
         if len(bounds) > 2 and bounds[1] / bounds[0] < 1.08:
             del bounds[1]
@@ -255,8 +318,14 @@ class Renderer:
         s = self.s
         return min(max((z - s.fog_start_m) / (s.far_m - s.fog_start_m), 0.0), 1.0)
 
-    def _draw_slab(self, img: NDArray[np.uint8], ids: NDArray[np.uint16], job: _Job, slab: list[Point],
-                   z_rep: float) -> None:
+    def _draw_slab(
+        self,
+        img: NDArray[np.uint8],
+        ids: NDArray[np.uint16],
+        job: _Job,
+        slab: list[Point],
+        z_rep: float,
+    ) -> None:
         s = self.s
         pts, (umin, vmin, umax, vmax) = self._pts(slab)
         x0, y0 = max(int(umin), 0), max(int(vmin), 0)
@@ -267,10 +336,16 @@ class Renderer:
         fog = self._fog(z_rep)
         depth_test = job.layer == Layer.UPRIGHT
         pts -= np.array([x0 * _SUB, y0 * _SUB], np.int32)
-        flat = job.texture == FLAT or w * h <= TINY_PX  # a few pixels: the texture's mean is all one sees
+        flat = (
+            job.texture == FLAT or w * h <= TINY_PX
+        )  # a few pixels: the texture's mean is all one sees
         if flat:
-            val = int(round((1.0 - fog) * (job.value if job.texture == FLAT else self._mean[job.texture])
-                            + fog * s.haze))
+            val = int(
+                round(
+                    (1.0 - fog) * (job.value if job.texture == FLAT else self._mean[job.texture])
+                    + fog * s.haze
+                )
+            )
             if not depth_test:
                 cv2.fillPoly(img[y0:y1, x0:x1], [pts], val, cv2.LINE_8, 4)
                 return
@@ -295,19 +370,23 @@ class Renderer:
         else:
             warped = self._warp(job, slab, x0, y0, w, h)
             if fog > 0.0:
-                warped = cv2.addWeighted(warped, 1.0 - fog, warped, 0.0, fog * s.haze)
+                warped = np.asarray(
+                    cv2.addWeighted(warped, 1.0 - fog, warped, 0.0, fog * s.haze), np.uint8
+                )
         cv2.copyTo(warped, mask, img[y0:y1, x0:x1])
         if invz is not None:
             cv2.copyTo(invz, mask, self.zbuf[y0:y1, x0:x1])
-            ids[y0:y1, x0:x1][mask.view(bool)] = job.obj
+            np.copyto(ids[y0:y1, x0:x1], job.obj, where=mask.view(bool))
 
-    def _warp(self, job: _Job, slab: list[Point], x0: int, y0: int, w: int, h: int) -> NDArray[np.uint8]:
+    def _warp(
+        self, job: _Job, slab: list[Point], x0: int, y0: int, w: int, h: int
+    ) -> NDArray[np.uint8]:
         """The face's texture warped into the ROI (x0, y0, w, h) at the level this slab needs."""
         tex = self.textures[job.texture]
         su, sv = job.texel
         th, tw = tex.shape
         n = len(slab)
-        C = [sum(p[k] for p in slab) / n for k in range(3)]
+        C = [sum(c) / n for c in zip(*slab)]
         o = list(job.o_c)
         eu, ev = job.eu_c, job.ev_c
         rel = [C[k] - o[k] for k in range(3)]
@@ -343,8 +422,21 @@ class Renderer:
         ol = [o[k] + Xa[k] * (fu - 1.0) / 2.0 + Xb[k] * (fv - 1.0) / 2.0 for k in range(3)]
         c0 = [Xa[k] * fu for k in range(3)]
         c1 = [Xb[k] * fv for k in range(3)]
-        H = np.array([[fx * c0[0] + (cx - x0) * c0[2], fx * c1[0] + (cx - x0) * c1[2], fx * ol[0] + (cx - x0) * ol[2]],
-                      [fy * c0[1] + (cy - y0) * c0[2], fy * c1[1] + (cy - y0) * c1[2], fy * ol[1] + (cy - y0) * ol[2]],
-                      [c0[2], c1[2], ol[2]]])
+        H = np.array(
+            [
+                [
+                    fx * c0[0] + (cx - x0) * c0[2],
+                    fx * c1[0] + (cx - x0) * c1[2],
+                    fx * ol[0] + (cx - x0) * ol[2],
+                ],
+                [
+                    fy * c0[1] + (cy - y0) * c0[2],
+                    fy * c1[1] + (cy - y0) * c1[2],
+                    fy * ol[1] + (cy - y0) * ol[2],
+                ],
+                [c0[2], c1[2], ol[2]],
+            ]
+        )
         border = cv2.BORDER_WRAP if tex.wrap else cv2.BORDER_REPLICATE
-        return cv2.warpPerspective(lev, H, (w, h), flags=cv2.INTER_LINEAR, borderMode=border)
+        out = cv2.warpPerspective(lev, H, (w, h), flags=cv2.INTER_LINEAR, borderMode=border)
+        return np.asarray(out, np.uint8)

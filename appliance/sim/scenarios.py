@@ -20,7 +20,14 @@ import numpy as np
 
 from appliance.sim.collision import Vehicle, closest_approach
 from appliance.sim.ego import EgoPath, EgoPlan, PtuMove, PtuPlan
-from appliance.sim.movers import SIZES, MoverPlan, Trajectory, crossing_course, stand_then_cross, stop_at
+from appliance.sim.movers import (
+    SIZES,
+    MoverPlan,
+    Trajectory,
+    crossing_course,
+    stand_then_cross,
+    stop_at,
+)
 from appliance.sim.street import ClearView, Intersection, ParkedCar, StreetPlan
 
 KMH = 1.0 / 3.6  # m/s per km/h
@@ -54,8 +61,15 @@ def _shifted(traj: Trajectory, dt: float) -> Trajectory:
     return Trajectory(tuple((t + dt, x, y) for t, x, y in traj.waypoints))
 
 
-def near_miss(course: Trajectory, kind: str, ego: EgoPlan, vehicle: Vehicle, gap_m: float,
-              in_front: bool, window: tuple[float, float]) -> Trajectory:
+def near_miss(
+    course: Trajectory,
+    kind: str,
+    ego: EgoPlan,
+    vehicle: Vehicle,
+    gap_m: float,
+    in_front: bool,
+    window: tuple[float, float],
+) -> Trajectory:
     """Shift a collision course in time (earlier: passes in front; later: behind) until the
     footprints' closest approach is ``gap_m``."""
     path = EgoPath(ego, window[0] - 10.0, window[1] + 10.0)
@@ -79,13 +93,25 @@ def pedestrian_crossing_nearside(v: Vehicle) -> Plan:
     between two parked cars; the nearer car hides the body below the roof line while the
     pedestrian crosses the parking lane. Impact at 25 % of the width from the right."""
     ego_speed, T = 35 * KMH, 8.0
-    walk = crossing_course(ego_speed=ego_speed, aim_x=v.front, mover_speed=WALK, from_right=True,
-                           aim_y=-v.width / 2 + 0.25 * v.width, aim_tau=T, start_y=-6.4, end_y=6.0)
+    walk = crossing_course(
+        ego_speed=ego_speed,
+        aim_x=v.front,
+        mover_speed=WALK,
+        from_right=True,
+        aim_y=-v.width / 2 + 0.25 * v.width,
+        aim_tau=T,
+        start_y=-6.4,
+        end_y=6.0,
+    )
     x_line = walk.waypoints[0][1]
     occluder, behind = x_line - 1.5 - 2.25, x_line + 0.8 + 2.25
-    street = StreetPlan(parked=(ParkedCar(occluder, "right", 4.5, 1), ParkedCar(behind, "right", 4.5, 5)),
-                        clear_view=(ClearView(x_line - 45.0, occluder, "right"),))
-    ped = MoverPlan("pedestrian", stand_then_cross(walk, -60.0), "adult, steps out between parked cars")
+    street = StreetPlan(
+        parked=(ParkedCar(occluder, "right", 4.5, 1), ParkedCar(behind, "right", 4.5, 5)),
+        clear_view=(ClearView(x_line - 45.0, occluder, "right"),),
+    )
+    ped = MoverPlan(
+        "pedestrian", stand_then_cross(walk, -60.0), "adult, steps out between parked cars"
+    )
     return Plan(EgoPlan(speed=((0.0, ego_speed),)), duration_s=8.0, street=street, movers=(ped,))
 
 
@@ -95,14 +121,26 @@ def car_crossing_intersection(v: Vehicle) -> Plan:
     right) is exactly constant. The PTU pans 20 deg right towards it 8 s before impact; the
     near-right corner is an open car park so the car is in view early."""
     ego_speed, car_speed, T = 40 * KMH, 20 * KMH, 10.0
-    course = crossing_course(ego_speed=ego_speed, aim_x=v.camera_x, mover_speed=car_speed,
-                             from_right=True, aim_y=v.camera_y, aim_tau=T, start_y=-200.0, end_y=60.0)
+    course = crossing_course(
+        ego_speed=ego_speed,
+        aim_x=v.camera_x,
+        mover_speed=car_speed,
+        from_right=True,
+        aim_y=v.camera_y,
+        aim_tau=T,
+        start_y=-200.0,
+        end_y=60.0,
+    )
     s_cross = course.waypoints[0][1] - 1.75  # the car keeps to its right-hand lane
-    street = StreetPlan(intersections=(Intersection(s_cross, ("near_right",), 70.0),),
-                        clear_view=(ClearView(s_cross - 150.0, s_cross, "right"),))
+    street = StreetPlan(
+        intersections=(Intersection(s_cross, ("near_right",), 70.0),),
+        clear_view=(ClearView(s_cross - 150.0, s_cross, "right"),),
+    )
     ptu = PtuPlan(moves=(PtuMove(start=T - 8.0, duration=1.0, pan=-0.35),))
     car = MoverPlan("car", course, "car from the right on the cross street")
-    return Plan(EgoPlan(speed=((0.0, ego_speed),)), duration_s=10.0, street=street, movers=(car,), ptu=ptu)
+    return Plan(
+        EgoPlan(speed=((0.0, ego_speed),)), duration_s=10.0, street=street, movers=(car,), ptu=ptu
+    )
 
 
 def cyclist_crossing_intersection(v: Vehicle) -> Plan:
@@ -110,14 +148,26 @@ def cyclist_crossing_intersection(v: Vehicle) -> Plan:
     street on a collision course aimed at the camera (constant bearing, 27 deg left). The PTU
     pans 20 deg left towards it 8 s before impact."""
     ego_speed, bike_speed, T = 30 * KMH, 15 * KMH, 10.0
-    course = crossing_course(ego_speed=ego_speed, aim_x=v.camera_x, mover_speed=bike_speed,
-                             from_right=False, aim_y=v.camera_y, aim_tau=T, start_y=120.0, end_y=-40.0)
+    course = crossing_course(
+        ego_speed=ego_speed,
+        aim_x=v.camera_x,
+        mover_speed=bike_speed,
+        from_right=False,
+        aim_y=v.camera_y,
+        aim_tau=T,
+        start_y=120.0,
+        end_y=-40.0,
+    )
     s_cross = course.waypoints[0][1] + 2.5  # rides 1 m from the right kerb of its lane
-    street = StreetPlan(intersections=(Intersection(s_cross, ("near_left",), 60.0),),
-                        clear_view=(ClearView(s_cross - 120.0, s_cross, "left"),))
+    street = StreetPlan(
+        intersections=(Intersection(s_cross, ("near_left",), 60.0),),
+        clear_view=(ClearView(s_cross - 120.0, s_cross, "left"),),
+    )
     ptu = PtuPlan(moves=(PtuMove(start=T - 8.0, duration=1.0, pan=0.35),))
     bike = MoverPlan("cyclist", course, "cyclist from the left on the cross street")
-    return Plan(EgoPlan(speed=((0.0, ego_speed),)), duration_s=10.0, street=street, movers=(bike,), ptu=ptu)
+    return Plan(
+        EgoPlan(speed=((0.0, ego_speed),)), duration_s=10.0, street=street, movers=(bike,), ptu=ptu
+    )
 
 
 # ---------------------------------------------------------------- no collision
@@ -127,14 +177,30 @@ def pedestrian_stops_at_kerb(v: Vehicle) -> Plan:
     """Ego 30 km/h; a pedestrian walks towards the road on a collision course but stops at the
     kerb and waits while the car passes."""
     ego_speed, T = 30 * KMH, 7.0
-    walk = crossing_course(ego_speed=ego_speed, aim_x=v.front, mover_speed=WALK, from_right=True,
-                           aim_y=-v.width / 4, aim_tau=T, start_y=-6.4, end_y=6.0)
+    walk = crossing_course(
+        ego_speed=ego_speed,
+        aim_x=v.front,
+        mover_speed=WALK,
+        from_right=True,
+        aim_y=-v.width / 4,
+        aim_tau=T,
+        start_y=-6.4,
+        end_y=6.0,
+    )
     x_line = walk.waypoints[0][1]
-    ped = MoverPlan("pedestrian", stand_then_cross(stop_at(walk, stop_y=-4.15), -60.0),
-                    "pedestrian who stops at the kerb")
+    ped = MoverPlan(
+        "pedestrian",
+        stand_then_cross(stop_at(walk, stop_y=-4.15), -60.0),
+        "pedestrian who stops at the kerb",
+    )
     street = StreetPlan(clear_view=(ClearView(x_line - 35.0, x_line + 4.0, "right"),))
-    return Plan(EgoPlan(speed=((0.0, ego_speed),)), duration_s=8.0, end_s=T + 1.0, street=street,
-                movers=(ped,))
+    return Plan(
+        EgoPlan(speed=((0.0, ego_speed),)),
+        duration_s=8.0,
+        end_s=T + 1.0,
+        street=street,
+        movers=(ped,),
+    )
 
 
 def car_crosses_ahead(v: Vehicle) -> Plan:
@@ -142,19 +208,30 @@ def car_crosses_ahead(v: Vehicle) -> Plan:
     30 m away: it moves quickly across the image and never comes near."""
     ego_speed, car_speed, t_cross = 40 * KMH, 30 * KMH, 6.0
     x_line = v.front + ego_speed * t_cross + 30.0
-    car = Trajectory(((t_cross - 80.0 / car_speed, x_line, 80.0), (t_cross + 80.0 / car_speed, x_line, -80.0)))
+    car = Trajectory(
+        ((t_cross - 80.0 / car_speed, x_line, 80.0), (t_cross + 80.0 / car_speed, x_line, -80.0))
+    )
     s_cross = x_line + 1.75
-    street = StreetPlan(intersections=(Intersection(s_cross, ("near_left",), 60.0),),
-                        clear_view=(ClearView(s_cross - 80.0, s_cross, "left"),))
-    return Plan(EgoPlan(speed=((0.0, ego_speed),)), duration_s=10.0, end_s=10.0, street=street,
-                movers=(MoverPlan("car", car, "car crossing well ahead"),))
+    street = StreetPlan(
+        intersections=(Intersection(s_cross, ("near_left",), 60.0),),
+        clear_view=(ClearView(s_cross - 80.0, s_cross, "left"),),
+    )
+    return Plan(
+        EgoPlan(speed=((0.0, ego_speed),)),
+        duration_s=10.0,
+        end_s=10.0,
+        street=street,
+        movers=(MoverPlan("car", car, "car crossing well ahead"),),
+    )
 
 
 def bend_static(v: Vehicle) -> Plan:
     """Ego 35 km/h through a left bend (yaw rate up to 0.13 rad/s, radius 75 m) with only the
     static scene: every flow is the ego's own."""
-    ego = EgoPlan(speed=((0.0, 35 * KMH),),
-                  yaw_rate=((0.0, 0.0), (2.0, 0.0), (3.5, 0.13), (7.5, 0.13), (9.0, 0.0)))
+    ego = EgoPlan(
+        speed=((0.0, 35 * KMH),),
+        yaw_rate=((0.0, 0.0), (2.0, 0.0), (3.5, 0.13), (7.5, 0.13), (9.0, 0.0)),
+    )
     return Plan(ego, duration_s=11.0, end_s=11.0, street=StreetPlan(parking_occupancy=0.7))
 
 
@@ -163,26 +240,46 @@ def lead_car_driving_away(v: Vehicle) -> Plan:
     from 45 to 65 km/h and pulls away."""
     v0, v1, a, t_acc = 45 * KMH, 65 * KMH, 1.5, 2.0
     x0 = v.front + 12.0 + SIZES["car"][0] / 2
-    taus = np.concatenate([[-30.0, t_acc], np.arange(t_acc + 0.25, t_acc + (v1 - v0) / a, 0.25),
-                           [t_acc + (v1 - v0) / a]])
+    taus = np.concatenate(
+        [
+            [-30.0, t_acc],
+            np.arange(t_acc + 0.25, t_acc + (v1 - v0) / a, 0.25),
+            [t_acc + (v1 - v0) / a],
+        ]
+    )
     dt = np.clip(taus - t_acc, 0.0, (v1 - v0) / a)
     x = x0 + v0 * taus + 0.5 * a * dt**2
     lead = Trajectory(tuple((float(t), float(xx), 0.0) for t, xx in zip(taus, x)))
-    return Plan(EgoPlan(speed=((0.0, v0),)), duration_s=10.0, end_s=10.0,
-                movers=(MoverPlan("car", lead, "lead car pulling away"),))
+    return Plan(
+        EgoPlan(speed=((0.0, v0),)),
+        duration_s=10.0,
+        end_s=10.0,
+        movers=(MoverPlan("car", lead, "lead car pulling away"),),
+    )
 
 
 def _passing(v: Vehicle, in_front: bool) -> Plan:
     ego_speed, T = 30 * KMH, 7.0
     ego = EgoPlan(speed=((0.0, ego_speed),))
-    walk = crossing_course(ego_speed=ego_speed, aim_x=v.front, mover_speed=WALK, from_right=True,
-                           aim_y=0.0, aim_tau=T, start_y=-6.4, end_y=8.0)
+    walk = crossing_course(
+        ego_speed=ego_speed,
+        aim_x=v.front,
+        mover_speed=WALK,
+        from_right=True,
+        aim_y=0.0,
+        aim_tau=T,
+        start_y=-6.4,
+        end_y=8.0,
+    )
     walk = near_miss(walk, "pedestrian", ego, v, 1.0, in_front, (T - 5.0, T + 5.0))
     x_line = walk.waypoints[0][1]
     path = EgoPath(ego, T - 10.0, T + 10.0)
     _, t_close = closest_approach(path, walk, SIZES["pedestrian"], v, T - 5.0, T + 5.0)
-    ped = MoverPlan("pedestrian", stand_then_cross(walk, -60.0),
-                    "pedestrian passing 1 m " + ("in front of the bumper" if in_front else "behind the car"))
+    ped = MoverPlan(
+        "pedestrian",
+        stand_then_cross(walk, -60.0),
+        "pedestrian passing 1 m " + ("in front of the bumper" if in_front else "behind the car"),
+    )
     street = StreetPlan(clear_view=(ClearView(x_line - 35.0, x_line + 4.0, "right"),))
     return Plan(ego, duration_s=8.0, end_s=round(t_close + 0.5, 3), street=street, movers=(ped,))
 
@@ -206,23 +303,48 @@ def _scenario(fn: Callable[[Vehicle], Plan], collision: bool, description: str) 
 SCENARIOS: dict[str, Scenario] = {
     s.name: s
     for s in (
-        _scenario(pedestrian_crossing_nearside, True,
-                  "collision: pedestrian steps out between parked cars, 35 km/h, impact at 25 % width"),
-        _scenario(car_crossing_intersection, True,
-                  "collision: car from the right at an intersection, 40 km/h vs 20 km/h, PTU pans right"),
-        _scenario(cyclist_crossing_intersection, True,
-                  "collision: cyclist from the left at an intersection, 30 km/h vs 15 km/h, PTU pans left"),
-        _scenario(pedestrian_stops_at_kerb, False,
-                  "no collision: pedestrian on a collision course stops at the kerb, 30 km/h"),
-        _scenario(car_crosses_ahead, False,
-                  "no collision: car crosses the intersection 30 m ahead, 40 km/h"),
-        _scenario(bend_static, False,
-                  "no collision: left bend (R 75 m) at 35 km/h, static scene only"),
-        _scenario(lead_car_driving_away, False,
-                  "no collision: lead car 12 m ahead accelerates away, 45 km/h"),
-        _scenario(pedestrian_passes_front, False,
-                  "near miss: pedestrian passes 1 m in front of the bumper, 30 km/h"),
-        _scenario(pedestrian_passes_behind, False,
-                  "near miss: pedestrian passes 1 m behind the car, 30 km/h"),
+        _scenario(
+            pedestrian_crossing_nearside,
+            True,
+            "collision: pedestrian steps out between parked cars, 35 km/h, impact at 25 % width",
+        ),
+        _scenario(
+            car_crossing_intersection,
+            True,
+            "collision: car from the right at an intersection, 40 km/h vs 20 km/h, PTU pans right",
+        ),
+        _scenario(
+            cyclist_crossing_intersection,
+            True,
+            "collision: cyclist from the left at an intersection, 30 vs 15 km/h, PTU pans left",
+        ),
+        _scenario(
+            pedestrian_stops_at_kerb,
+            False,
+            "no collision: pedestrian on a collision course stops at the kerb, 30 km/h",
+        ),
+        _scenario(
+            car_crosses_ahead,
+            False,
+            "no collision: car crosses the intersection 30 m ahead, 40 km/h",
+        ),
+        _scenario(
+            bend_static, False, "no collision: left bend (R 75 m) at 35 km/h, static scene only"
+        ),
+        _scenario(
+            lead_car_driving_away,
+            False,
+            "no collision: lead car 12 m ahead accelerates away, 45 km/h",
+        ),
+        _scenario(
+            pedestrian_passes_front,
+            False,
+            "near miss: pedestrian passes 1 m in front of the bumper, 30 km/h",
+        ),
+        _scenario(
+            pedestrian_passes_behind,
+            False,
+            "near miss: pedestrian passes 1 m behind the car, 30 km/h",
+        ),
     )
 }

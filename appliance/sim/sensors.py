@@ -28,8 +28,10 @@ PTU_PERIOD_S = 0.05
 PTU_STEP_RAD = 185.1428 / 3600.0 * np.pi / 180.0
 
 
-def frame_times(rng: np.random.Generator, n: int, fps: float = FPS, jitter_s: float = 0.0005) -> FloatArray:
-    """Offsets (s) of n frames from the first: k / fps plus clipped Gaussian jitter; offset 0 is exact."""
+def frame_times(
+    rng: np.random.Generator, n: int, fps: float = FPS, jitter_s: float = 0.0005
+) -> FloatArray:
+    """Offsets (s) of n frames from the first: k / fps plus clipped Gaussian jitter (0 exact)."""
     j = np.clip(rng.normal(0.0, jitter_s, n), -3 * jitter_s, 3 * jitter_s)
     j[0] = 0.0
     return np.arange(n) / fps + j
@@ -37,7 +39,7 @@ def frame_times(rng: np.random.Generator, n: int, fps: float = FPS, jitter_s: fl
 
 @dataclass(frozen=True)
 class CanErrors:
-    """speed_scale: relative speed error; yaw_bias_deg_s: yaw-rate offset; *_noise: white noise std."""
+    """speed_scale: relative speed error; yaw_bias_deg_s: yaw-rate offset; *_noise: noise std."""
 
     speed_scale: float
     speed_noise_kmh: float
@@ -46,16 +48,28 @@ class CanErrors:
 
     @staticmethod
     def random(rng: np.random.Generator) -> CanErrors:
-        return CanErrors(speed_scale=float(rng.uniform(-0.01, 0.01)), speed_noise_kmh=0.05,
-                         yaw_bias_deg_s=float(rng.uniform(-0.2, 0.2)), yaw_noise_deg_s=0.1)
+        return CanErrors(
+            speed_scale=float(rng.uniform(-0.01, 0.01)),
+            speed_noise_kmh=0.05,
+            yaw_bias_deg_s=float(rng.uniform(-0.2, 0.2)),
+            yaw_noise_deg_s=0.1,
+        )
 
 
 class VehicleCan:
-    """Encodes speed and yaw-rate frames through the DBC (the appliance decodes them the same way)."""
+    """Encodes speed and yaw-rate frames through the DBC (the appliance decodes them likewise)."""
 
-    def __init__(self, dbc_path: str | Path, errors: CanErrors, rng: np.random.Generator,
-                 channel: str = "can0") -> None:
-        self.db = cantools.database.load_file(str(dbc_path))
+    def __init__(
+        self,
+        dbc_path: str | Path,
+        errors: CanErrors,
+        rng: np.random.Generator,
+        channel: str = "can0",
+    ) -> None:
+        db = cantools.database.load_file(str(dbc_path))
+        if not isinstance(db, cantools.database.can.Database):
+            raise TypeError(f"{dbc_path} is not a CAN database")
+        self.db = db
         self.speed_msg = self.db.get_message_by_name("VEHICLE_SPEED")
         self.yaw_msg = self.db.get_message_by_name("YAW_RATE")
         self.errors = errors
@@ -67,13 +81,25 @@ class VehicleCan:
         n = int(np.floor((t_last - t_first) / CAN_PERIOD_S)) + 1
         return t_first + CAN_PERIOD_S * np.arange(n) + self.rng.uniform(-0.0002, 0.0002, n)
 
-    def messages(self, t: FloatArray, speed_m_s: FloatArray, yaw_rate_rad_s: FloatArray,
-                 yaw_t: FloatArray, yaw_rate_at_yaw_t: FloatArray) -> list[can.Message]:
-        """Speed frames at times ``t`` and yaw frames at ``yaw_t`` from the true signals, sorted by time."""
+    def messages(
+        self,
+        t: FloatArray,
+        speed_m_s: FloatArray,
+        yaw_rate_rad_s: FloatArray,
+        yaw_t: FloatArray,
+        yaw_rate_at_yaw_t: FloatArray,
+    ) -> list[can.Message]:
+        """Speed frames at ``t`` and yaw frames at ``yaw_t`` from the true signals, by time."""
         e = self.errors
-        kmh = speed_m_s * 3.6 * (1.0 + e.speed_scale) + self.rng.normal(0, e.speed_noise_kmh, len(t))
+        kmh = speed_m_s * 3.6 * (1.0 + e.speed_scale) + self.rng.normal(
+            0, e.speed_noise_kmh, len(t)
+        )
         kmh = np.clip(np.round(kmh, 2), 0.0, 655.35)
-        dps = np.degrees(yaw_rate_at_yaw_t) + e.yaw_bias_deg_s + self.rng.normal(0, e.yaw_noise_deg_s, len(yaw_t))
+        dps = (
+            np.degrees(yaw_rate_at_yaw_t)
+            + e.yaw_bias_deg_s
+            + self.rng.normal(0, e.yaw_noise_deg_s, len(yaw_t))
+        )
         dps = np.clip(np.round(dps, 2), -327.68, 327.67)
         out = []
         for k, (ts, v) in enumerate(zip(t, kmh)):
@@ -87,12 +113,17 @@ class VehicleCan:
 
     def _msg(self, t: float, frame_id: int, data: bytes) -> can.Message:
         # microsecond timestamps, as candump logs and SocketCAN give them
-        return can.Message(timestamp=round(t, 6), arbitration_id=frame_id, is_extended_id=False, data=data,
-                           channel=self.channel, is_rx=True)
+        return can.Message(
+            timestamp=round(t, 6),
+            arbitration_id=frame_id,
+            is_extended_id=False,
+            data=data,
+            channel=self.channel,
+            is_rx=True,
+        )
 
 
-def ptu_samples(rng: np.random.Generator, t_first: float, t_last: float
-                ) -> FloatArray:
+def ptu_samples(rng: np.random.Generator, t_first: float, t_last: float) -> FloatArray:
     """Times (s) of the PTU position polls: 20 Hz with 1 ms jitter."""
     n = int(np.floor((t_last - t_first) / PTU_PERIOD_S)) + 1
     return t_first + PTU_PERIOD_S * np.arange(n) + rng.uniform(-0.001, 0.001, n)

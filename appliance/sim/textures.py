@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import cv2
 import numpy as np
@@ -65,8 +66,9 @@ class Texture:
         return len(self.levels) - 1, len(self.levels[0]) - 1
 
 
-def make_texture(name: str, image: U8, wrap: bool, texel_m: tuple[float, float] = (0.01, 0.01),
-                 min_size: int = 2) -> Texture:
+def make_texture(
+    name: str, image: U8, wrap: bool, texel_m: tuple[float, float] = (0.01, 0.01), min_size: int = 2
+) -> Texture:
     """Build the rip-map of ``image`` by box-filtered down-sampling (``INTER_AREA``).
 
     For a wrapping texture every level stays periodic as long as the size is
@@ -90,7 +92,7 @@ def make_texture(name: str, image: U8, wrap: bool, texel_m: tuple[float, float] 
         for lv in range(nv + 1):
             size = (max(1, w >> lu), max(1, h >> lv))
             lev = img if (lu, lv) == (0, 0) else cv2.resize(img, size, interpolation=cv2.INTER_AREA)
-            row.append(np.ascontiguousarray(lev))
+            row.append(np.ascontiguousarray(lev, dtype=np.uint8))
         levels.append(tuple(row))
     return Texture(name, tuple(levels), wrap, texel_m)
 
@@ -98,8 +100,13 @@ def make_texture(name: str, image: U8, wrap: bool, texel_m: tuple[float, float] 
 # ---------------------------------------------------------------- noise primitives
 
 
-def pink_noise(rng: np.random.Generator, shape: tuple[int, int], beta: float = 1.0,
-               low_cut: float = 1.0, high_cut: float | None = None) -> F32:
+def pink_noise(
+    rng: np.random.Generator,
+    shape: tuple[int, int],
+    beta: float = 1.0,
+    low_cut: float = 1.0,
+    high_cut: float | None = None,
+) -> F32:
     """Periodic 1/f**beta noise (zero mean, unit std), shape (H, W), float32.
 
     ``low_cut``/``high_cut`` limit the spatial frequencies (cycles per image).
@@ -134,11 +141,12 @@ def blur_wrap(img: NDArray[np.floating], sigma: float) -> F32:
     h, w = img.shape
     pad = cv2.copyMakeBorder(np.asarray(img, np.float32), r, r, r, r, cv2.BORDER_WRAP)
     out = cv2.GaussianBlur(pad, (2 * r + 1, 2 * r + 1), sigma, borderType=cv2.BORDER_REFLECT)
-    return np.ascontiguousarray(out[r:r + h, r:r + w])
+    return np.ascontiguousarray(out[r : r + h, r : r + w])
 
 
-def _to_u8(img: NDArray[np.floating]) -> U8:
-    return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+def _to_u8(img: NDArray[Any]) -> U8:
+    out: U8 = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    return out
 
 
 def _grain(rng: np.random.Generator, shape: tuple[int, int], amp: float, blur: float = 0.6) -> F32:
@@ -194,8 +202,9 @@ def asphalt(rng: np.random.Generator, size: int = 1024, texel_m: float = 0.01) -
     return make_texture("asphalt", _to_u8(img), True, (texel_m, texel_m))
 
 
-def paving(rng: np.random.Generator, size: int = 512, slab: int = 32,
-           texel_m: float = 0.015625) -> Texture:
+def paving(
+    rng: np.random.Generator, size: int = 512, slab: int = 32, texel_m: float = 0.015625
+) -> Texture:
     """Sidewalk paving slabs with dark joints and per-slab brightness; wraps."""
     shape = (size, size)
     img = np.zeros(shape, np.float32)
@@ -208,18 +217,23 @@ def paving(rng: np.random.Generator, size: int = 512, slab: int = 32,
             val = base + float(rng.normal(0, 12))
 
             def draw(dx: int, dy: int, x0: int = x0, val: float = val, j: int = j) -> None:
-                cv2.rectangle(img, (x0 + dx, j * slab + dy), (x0 + slab - 1 + dx, (j + 1) * slab - 1 + dy),
-                              val, -1)
+                cv2.rectangle(
+                    img,
+                    (x0 + dx, j * slab + dy),
+                    (x0 + slab - 1 + dx, (j + 1) * slab - 1 + dy),
+                    val,
+                    -1,
+                )
 
             _wrapped(draw, size, size)
     img += 6.0 * pink_noise(rng, shape, beta=1.0, low_cut=2.0)
     img += _grain(rng, shape, 6.0, 0.8)
     for j in range(n):  # joints
-        img[j * slab:j * slab + 2, :] = base - 55
+        img[j * slab : j * slab + 2, :] = base - 55
         shift = (slab // 2) * (j % 2)
         for i in range(n + 1):
             x = (i * slab + shift) % size
-            img[j * slab:(j + 1) * slab, x:x + 2] = base - 55
+            img[j * slab : (j + 1) * slab, x : x + 2] = base - 55
     img = blur_wrap(img, 0.7)
     return make_texture("paving", _to_u8(img), True, (texel_m, texel_m))
 
@@ -229,8 +243,8 @@ def kerb(rng: np.random.Generator, texel_m: float = 0.015625) -> Texture:
     w, h = 256, 8
     img = np.zeros((h, w), np.float32)
     for i in range(4):
-        img[:, i * 64:(i + 1) * 64] = float(rng.uniform(165, 200))
-        img[:, i * 64:i * 64 + 2] = 90
+        img[:, i * 64 : (i + 1) * 64] = float(rng.uniform(165, 200))
+        img[:, i * 64 : i * 64 + 2] = 90
     img[:2, :] += 15
     img += _grain(rng, (h, w), 5.0, 0.5)
     return make_texture("kerb", _to_u8(img), True, (texel_m, texel_m), min_size=1)
@@ -257,7 +271,9 @@ def facade(rng: np.random.Generator, index: int, texel_m: float = 0.02) -> Textu
                 x0 = (c * 16 + off) % w
 
                 def draw(dx: int, dy: int, x0: int = x0, r: int = r, val: float = val) -> None:
-                    cv2.rectangle(img, (x0 + dx, r * 4 + dy), (x0 + 14 + dx, r * 4 + 2 + dy), val, -1)
+                    cv2.rectangle(
+                        img, (x0 + dx, r * 4 + dy), (x0 + 14 + dx, r * 4 + 2 + dy), val, -1
+                    )
 
                 _wrapped(draw, w, h)
         img[3::4, :] = wall - 40
@@ -272,15 +288,22 @@ def facade(rng: np.random.Generator, index: int, texel_m: float = 0.02) -> Textu
         cv2.rectangle(img, (x0 - 4, top - 4), (x0 + win_w + 3, top + win_h + 3), frame, -1)
         refl = np.linspace(0, 1, win_h, dtype=np.float32)[:, None] * float(rng.uniform(10, 40))
         pane = glass + refl + 6.0 * pink_noise(rng, (win_h, win_w), beta=1.5, low_cut=1.0)
-        img[top:top + win_h, x0:x0 + win_w] = pane
+        img[top : top + win_h, x0 : x0 + win_w] = pane
         mid = x0 + win_w // 2
         cv2.line(img, (mid, top), (mid, top + win_h - 1), frame, 3)  # mullion
-        cv2.line(img, (x0, top + win_h // 3), (x0 + win_w - 1, top + win_h // 3), frame, 2)  # transom
-        cv2.rectangle(img, (x0 - 8, top + win_h + 4), (x0 + win_w + 7, top + win_h + 9),
-                      float(np.clip(wall + 40, 0, 255)), -1)  # sill
+        cv2.line(
+            img, (x0, top + win_h // 3), (x0 + win_w - 1, top + win_h // 3), frame, 2
+        )  # transom
+        cv2.rectangle(
+            img,
+            (x0 - 8, top + win_h + 4),
+            (x0 + win_w + 7, top + win_h + 9),
+            float(np.clip(wall + 40, 0, 255)),
+            -1,
+        )  # sill
         if rng.random() < 0.5:  # curtain
             cw = int(rng.integers(10, win_w // 2))
-            img[top:top + win_h, x0:x0 + cw] = float(rng.uniform(120, 220))
+            img[top : top + win_h, x0 : x0 + cw] = float(rng.uniform(120, 220))
     if style == 2:
         img[:, ::64] = frame
     cv2.line(img, (0, h - 2), (w - 1, h - 2), wall - 30, 2)  # floor band
@@ -294,7 +317,7 @@ def roof(rng: np.random.Generator) -> Texture:
     return make_texture("roof", _to_u8(img), True, (0.05, 0.05))
 
 
-# ---------------------------------------------------------------- vehicles, people, street furniture
+# ---------------------------------------------------------------- vehicles, people, poles
 
 
 def car_side(rng: np.random.Generator, body: float) -> U8:
@@ -309,7 +332,7 @@ def car_side(rng: np.random.Generator, body: float) -> U8:
     cv2.line(img, (160, 36), (160, 70), body - 35, 1)
     cv2.rectangle(img, (100, 44), (110, 46), body + 40, -1)  # handles
     cv2.rectangle(img, (170, 44), (180, 46), body + 40, -1)
-    img[int(h * 0.78):] = body - 45  # sill / shadow
+    img[int(h * 0.78) :] = body - 45  # sill / shadow
     for cx in (52, 204):
         cv2.circle(img, (cx, 70), 14, 25.0, -1)
         cv2.circle(img, (cx, 70), 7, 150.0, -1)
@@ -322,8 +345,9 @@ def car_end(rng: np.random.Generator, body: float, front: bool) -> U8:
     """Front or rear of a car, 96 x 80 texels."""
     w, h = 96, 80
     img = np.full((h, w), body - 12.0, np.float32)
-    cv2.fillConvexPoly(img, np.array([[17, 32], [23, 8], [73, 8], [79, 32]], np.int32),
-                       float(rng.uniform(25, 60)))
+    cv2.fillConvexPoly(
+        img, np.array([[17, 32], [23, 8], [73, 8], [79, 32]], np.int32), float(rng.uniform(25, 60))
+    )
     img[34:] = body
     lamp = 230.0 if front else 70.0
     cv2.rectangle(img, (4, 40), (22, 50), lamp, -1)
@@ -382,7 +406,9 @@ def cyclist(rng: np.random.Generator, side: bool) -> U8:
                 p0 = np.rint((cx, 185) - d).astype(int)
                 p1 = np.rint((cx, 185) + d).astype(int)
                 cv2.line(img, (int(p0[0]), int(p0[1])), (int(p1[0]), int(p1[1])), 70.0, 1)
-        frame = np.array([[45, 185], [100, 120], [165, 125], [180, 185], [110, 185], [100, 120]], np.int32)
+        frame = np.array(
+            [[45, 185], [100, 120], [165, 125], [180, 185], [110, 185], [100, 120]], np.int32
+        )
         cv2.polylines(img, [frame], True, 230.0, 4)
         cv2.rectangle(img, (85, 40), (130, 120), shirt, -1)  # torso
         cv2.circle(img, (140, 28), 16, 190.0, -1)  # head
@@ -405,7 +431,7 @@ def pole(rng: np.random.Generator) -> U8:
     """Street-light pole, 16 x 256 texels: metal with bands and stickers."""
     img = np.full((256, 16), float(rng.uniform(60, 110)), np.float32)
     for y in rng.integers(20, 240, 5):
-        img[int(y):int(y) + 4] += float(rng.choice([-40.0, 60.0]))
+        img[int(y) : int(y) + 4] += float(rng.choice([-40.0, 60.0]))
     img[200:] -= 20
     img += _grain(rng, (256, 16), 5.0, 0.5)
     return _to_u8(img)

@@ -21,7 +21,20 @@ from appliance.vision.geometry import PinholeCamera
 FloatArray = NDArray[np.float64]
 
 # the 12 edges of a box whose corners are ordered as in world.Body.corners
-_EDGES = [(0, 1), (1, 3), (3, 2), (2, 0), (4, 5), (5, 7), (7, 6), (6, 4), (0, 4), (1, 5), (2, 6), (3, 7)]
+_EDGES = [
+    (0, 1),
+    (1, 3),
+    (3, 2),
+    (2, 0),
+    (4, 5),
+    (5, 7),
+    (7, 6),
+    (6, 4),
+    (0, 4),
+    (1, 5),
+    (2, 6),
+    (3, 7),
+]
 
 
 @dataclass(frozen=True)
@@ -32,24 +45,38 @@ class BoxView:
     bbox: tuple[float, float, float, float]
 
 
-def project_box(camera: PinholeCamera, camera_from_world: FloatArray, corners_w: FloatArray,
-                near_m: float = 0.3) -> BoxView | None:
-    """Project 8 world corners (8, 3); None when the box is behind the camera or outside the image."""
+def project_box(
+    camera: PinholeCamera, camera_from_world: FloatArray, corners_w: FloatArray, near_m: float = 0.3
+) -> BoxView | None:
+    """Project 8 world corners (8, 3); None when the box is behind the camera or off the image."""
     Pc = corners_w @ camera_from_world[:3, :3].T + camera_from_world[:3, 3]
     z = Pc[:, 2]
     if np.all(z < near_m):
         return None
-    pts = [Pc[z >= near_m]]
-    for a, b in _EDGES:
-        if (z[a] >= near_m) != (z[b] >= near_m):
-            s = (near_m - z[a]) / (z[b] - z[a])
-            pts.append((Pc[a] + s * (Pc[b] - Pc[a]))[None])
-    uv = camera.project(np.concatenate(pts))
-    uv = uv[np.all(np.isfinite(uv), axis=1)]
-    if len(uv) < 3:
+    front = z >= near_m
+    if front.all():
+        P = Pc
+    else:
+        pts = [Pc[front]]
+        for a, b in _EDGES:
+            if front[a] != front[b]:
+                s = (near_m - z[a]) / (z[b] - z[a])
+                pts.append((Pc[a] + s * (Pc[b] - Pc[a]))[None])
+        P = np.concatenate(pts)
+    if camera.has_distortion:
+        uv = camera.project(P)
+    else:
+        uv = np.column_stack(
+            [camera.fx * P[:, 0] / P[:, 2] + camera.cx, camera.fy * P[:, 1] / P[:, 2] + camera.cy]
+        )
+    W, H = camera.width - 1.0, camera.height - 1.0
+    lo, hi = uv.min(0), uv.max(0)
+    if hi[0] < 0 or hi[1] < 0 or lo[0] > W or lo[1] > H:
         return None
     hull = cv2.convexHull(uv.astype(np.float32)).reshape(-1, 2).astype(np.float64)
-    inside = _clip_to_image(hull, camera.width - 1.0, camera.height - 1.0)
+    if lo[0] >= 0 and lo[1] >= 0 and hi[0] <= W and hi[1] <= H:
+        return BoxView(hull, (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])))
+    inside = _clip_to_image(hull, W, H)
     if len(inside) < 3:
         return None
     u0, v0 = inside.min(0)
@@ -60,7 +87,12 @@ def project_box(camera: PinholeCamera, camera_from_world: FloatArray, corners_w:
 def _clip_to_image(poly: FloatArray, umax: float, vmax: float) -> FloatArray:
     """The part of a convex polygon (N, 2) inside [0, umax] x [0, vmax] (Sutherland-Hodgman)."""
     pts = [tuple(p) for p in poly]
-    for axis, bound, keep_below in ((0, 0.0, False), (0, umax, True), (1, 0.0, False), (1, vmax, True)):
+    for axis, bound, keep_below in (
+        (0, 0.0, False),
+        (0, umax, True),
+        (1, 0.0, False),
+        (1, vmax, True),
+    ):
         out = []
         for i in range(len(pts)):
             a, b = pts[i], pts[(i + 1) % len(pts)]

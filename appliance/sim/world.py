@@ -99,8 +99,19 @@ class FaceSet:
     def empty() -> FaceSet:
         z3 = np.zeros((0, 3))
         zi = np.zeros(0, np.int64)
-        return FaceSet(np.zeros((0, 4, 3)), z3, z3, z3, z3, np.zeros((0, 2)), zi, zi, zi,
-                       np.zeros(0), np.zeros(0, bool))
+        return FaceSet(
+            np.zeros((0, 4, 3)),
+            z3,
+            z3,
+            z3,
+            z3,
+            np.zeros((0, 2)),
+            zi,
+            zi,
+            zi,
+            np.zeros(0),
+            np.zeros(0, bool),
+        )
 
     @staticmethod
     def concat(sets: Sequence[FaceSet]) -> FaceSet:
@@ -126,13 +137,34 @@ class FaceSet:
         )
 
 
-_FIELDS = ("corners", "normal", "origin", "eu", "ev", "texel", "texture", "layer", "obj", "value",
-           "two_sided")
+_FIELDS = (
+    "corners",
+    "normal",
+    "origin",
+    "eu",
+    "ev",
+    "texel",
+    "texture",
+    "layer",
+    "obj",
+    "value",
+    "two_sided",
+)
 
 
-def rect_face(center: FloatArray, normal: FloatArray, ev: FloatArray, width: float, height: float,
-              texture: int, textures: Sequence[Texture], layer: Layer = Layer.UPRIGHT, obj: int = 0,
-              u_offset_m: float = 0.0, value: float = 0.0) -> Quad:
+def rect_face(
+    center: FloatArray,
+    normal: FloatArray,
+    ev: FloatArray,
+    width: float,
+    height: float,
+    texture: int,
+    textures: Sequence[Texture],
+    layer: Layer = Layer.UPRIGHT,
+    obj: int = 0,
+    u_offset_m: float = 0.0,
+    value: float = 0.0,
+) -> Quad:
     """A width x height rectangle centred at ``center``, seen from the side ``normal`` points to.
 
     ``ev`` is the texture's down (row) direction in the face; ``eu = normal x ev``
@@ -145,8 +177,9 @@ def rect_face(center: FloatArray, normal: FloatArray, ev: FloatArray, width: flo
     eu = np.cross(n, ev)
     c = np.asarray(center, float)
     hw, hh = width / 2.0, height / 2.0
-    corners = np.array([c - hw * eu - hh * ev, c + hw * eu - hh * ev, c + hw * eu + hh * ev,
-                        c - hw * eu + hh * ev])
+    corners = np.array(
+        [c - hw * eu - hh * ev, c + hw * eu - hh * ev, c + hw * eu + hh * ev, c - hw * eu + hh * ev]
+    )
     if texture == FLAT:
         su = sv = 1.0
         origin = corners[0]
@@ -162,7 +195,7 @@ def rect_face(center: FloatArray, normal: FloatArray, ev: FloatArray, width: flo
 
 @dataclass(frozen=True)
 class BoxSkin:
-    """Texture indices of a box's faces (``FLAT`` allowed): front (+x), rear, left (+y), right, top."""
+    """Texture indices of a box's faces (or ``FLAT``): front (+x), rear, left (+y), right, top."""
 
     front: int
     rear: int
@@ -171,8 +204,9 @@ class BoxSkin:
     top: int
 
 
-def box_faces(length: float, width: float, height: float, skin: BoxSkin,
-              textures: Sequence[Texture], obj: int) -> FaceSet:
+def box_faces(
+    length: float, width: float, height: float, skin: BoxSkin, textures: Sequence[Texture], obj: int
+) -> FaceSet:
     """The five visible faces of a box in its body frame.
 
     Body frame: origin at the centre of the footprint on the ground, x forward
@@ -181,16 +215,56 @@ def box_faces(length: float, width: float, height: float, skin: BoxSkin,
     L, W, Hh = length / 2.0, width / 2.0, height / 2.0
     down = np.array([0.0, 0.0, -1.0])
     quads = [
-        rect_face(np.array([L, 0, Hh]), np.array([1.0, 0, 0]), down, width, height, skin.front,
-                  textures, obj=obj),
-        rect_face(np.array([-L, 0, Hh]), np.array([-1.0, 0, 0]), down, width, height, skin.rear,
-                  textures, obj=obj),
-        rect_face(np.array([0, W, Hh]), np.array([0, 1.0, 0]), down, length, height, skin.left,
-                  textures, obj=obj),
-        rect_face(np.array([0, -W, Hh]), np.array([0, -1.0, 0]), down, length, height, skin.right,
-                  textures, obj=obj),
-        rect_face(np.array([0, 0, height]), np.array([0, 0, 1.0]), np.array([-1.0, 0, 0]), width,
-                  length, skin.top, textures, obj=obj),
+        rect_face(
+            np.array([L, 0, Hh]),
+            np.array([1.0, 0, 0]),
+            down,
+            width,
+            height,
+            skin.front,
+            textures,
+            obj=obj,
+        ),
+        rect_face(
+            np.array([-L, 0, Hh]),
+            np.array([-1.0, 0, 0]),
+            down,
+            width,
+            height,
+            skin.rear,
+            textures,
+            obj=obj,
+        ),
+        rect_face(
+            np.array([0, W, Hh]),
+            np.array([0, 1.0, 0]),
+            down,
+            length,
+            height,
+            skin.left,
+            textures,
+            obj=obj,
+        ),
+        rect_face(
+            np.array([0, -W, Hh]),
+            np.array([0, -1.0, 0]),
+            down,
+            length,
+            height,
+            skin.right,
+            textures,
+            obj=obj,
+        ),
+        rect_face(
+            np.array([0, 0, height]),
+            np.array([0, 0, 1.0]),
+            np.array([-1.0, 0, 0]),
+            width,
+            length,
+            skin.top,
+            textures,
+            obj=obj,
+        ),
     ]
     return FaceSet.from_quads(quads)
 
@@ -202,7 +276,7 @@ def yaw_matrix(yaw: float) -> FloatArray:
 
 @dataclass(frozen=True)
 class Body:
-    """A rigid box-shaped object: id, class, size (length, width, height) m and faces in its body frame."""
+    """A rigid box: id, class, size (length, width, height) m and faces in its body frame."""
 
     obj: int
     kind: str
@@ -212,8 +286,11 @@ class Body:
     def corners(self, x: float, y: float, yaw: float) -> FloatArray:
         """The 8 world corners (8, 3) of the box standing at (x, y) with heading ``yaw``."""
         L, W, Hh = self.size[0] / 2.0, self.size[1] / 2.0, self.size[2]
-        local = np.array([[sx * L, sy * W, z] for z in (0.0, Hh) for sx in (1, -1) for sy in (1, -1)])
-        return local @ yaw_matrix(yaw).T + np.array([x, y, 0.0])
+        local = np.array(
+            [[sx * L, sy * W, z] for z in (0.0, Hh) for sx in (1, -1) for sy in (1, -1)]
+        )
+        out: FloatArray = local @ yaw_matrix(yaw).T + np.array([x, y, 0.0])
+        return out
 
     def placed(self, x: float, y: float, yaw: float) -> FaceSet:
         return self.faces.transformed(yaw_matrix(yaw), np.array([x, y, 0.0]))

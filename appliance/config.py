@@ -195,6 +195,7 @@ class GroundConfig:
     border_margin_px: int = _p(0, 1000)
     scale_ttc_min_frames: int = _p(2, 1000)
     scale_process_std: float = _p(0.0, 100.0)
+    gate_sigmas: float = _p(0.0, 100.0, lo_open=True)
 
 
 @dataclass(frozen=True)
@@ -208,6 +209,9 @@ class WarningConfig:
     corridor_hysteresis_m: float = _p(0.0, 10.0)
     horizon_s: float = _p(0.0, 60.0, lo_open=True)
     bearing_tolerance_rad: float = _p(0.0, 1.0)
+    min_speed_m_s: float = _p(0.0, 50.0)
+    moving_sigmas: float = _p(0.0, 100.0)
+    moving_min_frames: int = _p(1, 1000)
 
 
 @dataclass(frozen=True)

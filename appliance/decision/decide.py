@@ -25,8 +25,8 @@ from numpy.typing import NDArray
 from appliance.config import Config
 from appliance.decision.clustering import Cluster, find_clusters
 from appliance.decision.ground_state import (
-    CameraPose, GroundTrack, bearing, camera_pose, ground_contact, ground_init, ground_predict,
-    ground_update, update_body_pitch,
+    CameraPose, GroundTrack, bearing, camera_pose, ground_absorb, ground_contact, ground_predict,
+    update_body_pitch,
 )
 from appliance.decision.probability_map import empty_map, spatio_temporal_filter
 from appliance.decision.scale_ttc import (
@@ -57,6 +57,7 @@ class TrackCues:
     bearings: tuple[tuple[float, float], ...] = ()
     depth: float | None = None  # m, camera to object along the vehicle x axis
     depth_t: float = float("-inf")  # s, when the depth last came from the ground state
+    moved: bool = False  # moving over ground (from the 3-D state; kept while it is missing)
 
 
 @dataclass(frozen=True)
@@ -129,9 +130,8 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
             u0, _, u1, _ = c.bbox
             contact = ground_contact(camera, (0.5 * (u0 + u1), c.foot_v - 0.5), pose, cfg.ground)
             if contact is not None:
-                g = (ground_init(contact, t, cfg.ground) if g is None
-                     else ground_update(g, contact, t))
-                fresh = True
+                g = ground_absorb(g, contact, t, cfg.ground)
+                fresh = g.t_update == t
         moving = c.weights >= cfg.clustering.member_weight
         m = measure_expansion(c.positions[moving], c.flows[moving], c.weights[moving],
                               ego.rotation, camera)
@@ -150,8 +150,29 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
         if t - depth_t > DEPTH_MEMORY_S:
             depth = None
     hist = (cues.bearings if cues else ()) + ((t, bearing(camera, track.position, pose)),)
+    moved = moves_over_ground(g, cfg) if g is not None else (cues.moved if cues else False)
     return TrackCues(ground=g, ground_fresh=fresh, scale=s, bearings=hist[-BEARING_HISTORY:],
-                     depth=depth, depth_t=depth_t)
+                     depth=depth, depth_t=depth_t, moved=moved)
+
+
+def moves_over_ground(g: GroundTrack, cfg: Config) -> bool:
+    """The object's velocity over ground is at least ``min_speed_m_s`` and ``moving_sigmas``
+    std (Mahalanobis, 2 dof) away from standing still.
+
+    The appliance warns of independently moving objects: a false detection on the
+    static scene (road texture in a bend, a parked car) has a velocity over ground
+    near zero once its 3-D state has converged, while it can be anywhere before.
+    """
+    v = g.velocity
+    speed = float(np.hypot(v[0], v[1]))
+    if g.updates < cfg.warning.moving_min_frames or speed < cfg.warning.min_speed_m_s:
+        return False
+    Pv = g.P[2:, 2:]
+    try:
+        m2 = float(v @ np.linalg.solve(Pv, v))
+    except np.linalg.LinAlgError:
+        return False
+    return m2 >= cfg.warning.moving_sigmas ** 2
 
 
 def _bearing_rate(hist: tuple[tuple[float, float], ...]) -> float | None:
@@ -222,7 +243,8 @@ def assess(track: ImageTrack, cues: TrackCues, sensors: SensorSample, cfg: Confi
         distance_m=None if distance is None else round(distance, 2),
         bearing_rad=None if brg is None else round(brg, 4),
     )
-    return TrackThreat(report=report, on_course=on_course, on_course_wide=on_wide)
+    return TrackThreat(report=report, on_course=on_course, on_course_wide=on_wide,
+                       moving=cues.moved)
 
 
 def decide(state: DecisionState, frame_index: int, t: float, particles: ParticleSet,

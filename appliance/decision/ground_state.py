@@ -142,12 +142,14 @@ def ground_contact(camera: PinholeCamera, uv: tuple[float, float], pose: CameraP
 class GroundTrack:
     """State ``[x, y, vx, vy]`` (m, m/s): position in the current vehicle frame and the
     object's velocity over ground expressed in it; P (4, 4). t_update: time of the last
-    ground contact (s); updates: how many contacts it has taken."""
+    ground contact (s); updates: how many contacts it has taken; rejected: outliers in a
+    row."""
 
     x: FloatArray
     P: FloatArray
     t_update: float
     updates: int
+    rejected: int = 0
 
     @property
     def position(self) -> FloatArray:
@@ -206,3 +208,25 @@ def ground_predict(g: GroundTrack, dt: float, sensors: SensorSample, cfg: Ground
 def ground_update(g: GroundTrack, contact: GroundContact, t: float) -> GroundTrack:
     x, P = update(g.x, g.P, contact.z, contact.R, H_POSITION)
     return GroundTrack(x=x, P=P, t_update=t, updates=g.updates + 1)
+
+
+def innovation_sigmas(g: GroundTrack, contact: GroundContact) -> float:
+    """Mahalanobis distance of a contact from the predicted position (in std)."""
+    y = contact.z - g.x[:2]
+    S = g.P[:2, :2] + contact.R
+    return float(math.sqrt(max(float(y @ np.linalg.solve(S, y)), 0.0)))
+
+
+def ground_absorb(g: GroundTrack | None, contact: GroundContact, t: float, cfg: GroundConfig
+                  ) -> GroundTrack:
+    """Start, update or (outlier) skip: a contact further than ``gate_sigmas`` from the
+    prediction is skipped once the state has 3 contacts; 5 outliers in a row restart it
+    (the object was lost and found elsewhere, or the state went wrong)."""
+    if g is None:
+        return ground_init(contact, t, cfg)
+    if g.updates >= 3 and innovation_sigmas(g, contact) > cfg.gate_sigmas:
+        if g.rejected + 1 >= 5:
+            return ground_init(contact, t, cfg)
+        return GroundTrack(x=g.x, P=g.P, t_update=g.t_update, updates=g.updates,
+                           rejected=g.rejected + 1)
+    return ground_update(g, contact, t)

@@ -5,7 +5,9 @@ predicted path meets the ego corridor and with what TTC. From that:
 
 * **Indication.** Level 2 is indicated while the path meets the corridor
   (``corridor_margin_m``) and TTC <= ``ttc_warning_s``; level 1 with
-  ``ttc_caution_s``.
+  ``ttc_caution_s``; only for tracks that have shown independent motion over
+  ground (``min_speed_m_s``, ``moving_sigmas``): the appliance warns of moving
+  objects, and a false detection on the static scene converges to standing still.
 * **Minimum persistence.** A track raises a level only after indicating it in
   ``min_persistence_frames`` consecutive frames: no single-frame warnings. The
   indication looks ahead by the window's length (threshold + (frames - 1) * frame
@@ -38,11 +40,13 @@ class TrackThreat:
 
     on_course: path meets the corridor (base margin); on_course_wide: with the
     corridor hysteresis added. ttc_s None = no contact predicted / unknown.
+    moving: the track has shown independent motion over ground (needed to raise a level).
     """
 
     report: TrackReport
     on_course: bool
     on_course_wide: bool
+    moving: bool = True
 
     @property
     def ttc(self) -> float | None:
@@ -69,7 +73,7 @@ def _indicated(th: TrackThreat, threshold: float, wide: bool, hysteresis: float)
         return False
     if wide:
         return th.on_course_wide and ttc <= threshold + hysteresis
-    return th.on_course and ttc <= threshold
+    return th.moving and th.on_course and ttc <= threshold
 
 
 def warning_step(state: WarningState, threats: tuple[TrackThreat, ...], t: float, frame: int,

@@ -1,4 +1,4 @@
-"""``python -m benchmarks [NAME ...]``: run the named benchmarks (all when none is given).
+"""``python -m benchmarks [NAME ...] [OPTIONS]``: run the named benchmarks (all when none is given).
 
 Each benchmark is a module ``benchmarks/<name>.py`` with ``main(argv) -> int`` that
 prints its table. They are measurements, not CI gates: the machine is shared, so
@@ -19,9 +19,10 @@ def available() -> list[str]:
 
 
 def main(argv: list[str]) -> int:
-    names = [a for a in argv if not a.startswith("-")]
-    extra = [a for a in argv if a.startswith("-")]
-    if names and names[0] in ("list", "--list"):
+    # leading words are benchmark names; everything from the first option on goes to them
+    split = next((i for i, a in enumerate(argv) if a.startswith("-")), len(argv))
+    names, extra = argv[:split], argv[split:]
+    if (names and names[0] == "list") or extra[:1] == ["--list"]:
         print("\n".join(available()))
         return 0
     unknown = [n for n in names if n not in available()]

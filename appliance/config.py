@@ -132,6 +132,7 @@ class DetectionConfig:
     standstill_speed_m_s: float = _p(0.0)
     standstill_residual_px: float = _p(0.0, lo_open=True)
     weight_floor: float = _p(0.0, 1.0)
+    max_flow_px: float = _p(0.0, lo_open=True)
 
 
 @dataclass(frozen=True)
@@ -196,6 +197,7 @@ class GroundConfig:
     scale_ttc_min_frames: int = _p(2, 1000)
     scale_process_std: float = _p(0.0, 100.0)
     gate_sigmas: float = _p(0.0, 100.0, lo_open=True)
+    memory_s: float = _p(0.0, 1000.0)
 
 
 @dataclass(frozen=True)

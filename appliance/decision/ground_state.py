@@ -201,7 +201,10 @@ def ground_predict(g: GroundTrack, dt: float, sensors: SensorSample, cfg: Ground
     if not sensors.can_valid:
         # ego motion unknown: the displacement may be wrong by several m/s
         Q[:2, :2] += np.eye(2) * (3.0 * dt) ** 2
-    x, P = predict(g.x, g.P, F, Q, u=d, B=B)
+    # fading memory (filterpy's alpha): old contacts lose weight with memory_s, so a state
+    # polluted by a wrong association or a range bias that changes with range recovers
+    alpha = math.exp(0.5 * dt / cfg.memory_s) if cfg.memory_s > 0.0 else 1.0
+    x, P = predict(g.x, g.P, F, Q, u=d, B=B, alpha=alpha)
     return GroundTrack(x=x, P=P, t_update=g.t_update, updates=g.updates)
 
 

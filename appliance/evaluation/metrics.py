@@ -15,8 +15,10 @@ Definitions (where the issue is silent, what a validation engineer expects):
 * **Colliding object:** ``collision_object`` of the truth when given, else the
   mover whose truth position is closest to the ego outline at ``collision_t``.
 * **Lead time:** ``collision_t`` minus the first level-2 event on the colliding
-  object (its track attributed to it, or its box matching it) at or before
-  ``collision_t``; null when there was none (a missed warning).
+  object at or before ``collision_t``; null when there was none (a missed
+  warning). A warning is on an object when its box matches the object's truth
+  box in that frame, or when its track is attributed to the object and matched
+  it within 15 frames (0.5 s at 30 fps) of the warning.
 * **False level-2 warnings:** level-2 onsets (a level-2 event after a lower level,
   or for a new track) in a no-collision scenario, or, in a collision scenario,
   not on a moving object.
@@ -49,6 +51,7 @@ MIN_VISIBLE = 0.5
 DETECT_WITHIN_FRAMES = 10
 LAST_WINDOW_S = 3.0
 MIN_ATTRIBUTED_FRAMES = 3
+ATTRIBUTION_WINDOW = 15  # frames
 
 TARGETS = {
     "lead_time_s": 1.5,
@@ -152,11 +155,16 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
         colliding = named[0] if named else _colliding_object(movers, ct, frame_times, mount)
 
     def on_object(w: WarningRow, o: TruthObject) -> bool:
-        if w.track is not None and owner.get(w.track) == o.id:
-            return True
+        # the warning's box matches the object then, or its track matched the object within
+        # ATTRIBUTION_WINDOW frames (a track that switched objects does not count)
         i = o.at(w.frame)
-        return w.bbox is not None and i is not None and \
-            iou(w.bbox, clip_box(o.bbox[i], width, height)) >= IOU_MATCH
+        if w.bbox is not None and i is not None and \
+                iou(w.bbox, clip_box(o.bbox[i], width, height)) >= IOU_MATCH:
+            return True
+        if w.track is None or owner.get(w.track) != o.id:
+            return False
+        near = range(w.frame - ATTRIBUTION_WINDOW, w.frame + ATTRIBUTION_WINDOW + 1)
+        return any(f in match[o.id] and match[o.id][f].id == w.track for f in near)
 
     if truth.collision:
         false_l2 = [w for w in l2_onsets if not any(on_object(w, o) for o in movers)]

@@ -9,8 +9,8 @@ import pytest
 
 from appliance.config import Config
 from appliance.decision.ground_state import (
-    CameraPose, back_project, ground_contact, ground_init, ground_predict, ground_update,
-    update_body_pitch, GroundContact,
+    CameraPose, GroundContact, GroundTrack, back_project, ground_contact, ground_init,
+    ground_predict, ground_update, update_body_pitch,
 )
 from appliance.decision.scale_ttc import (
     measure_expansion, scale_predict, scale_ttc, scale_update,
@@ -207,3 +207,52 @@ def test_bumper_correction_and_fusion(default_config: Config) -> None:
     assert f is not None and f[0] == pytest.approx(expected)
     assert f[1] < 0.1
     assert fuse(None, (1.0, 0.1)) == (1.0, 0.1) and fuse(None, None) is None
+
+
+def test_outlier_contacts_are_skipped_and_a_run_of_them_restarts(default_config: Config) -> None:
+    from appliance.decision.ground_state import ground_absorb
+
+    cfg = default_config.ground
+    R = np.diag([0.3, 0.1]) ** 2
+    g = None
+    for k in range(10):
+        g = ground_absorb(g, GroundContact(np.array([20.0, 2.0]), R), k / 30, cfg)
+    assert g is not None and g.updates == 10
+    # a stray particle puts one contact 6 m short: skipped, the state is unchanged
+    skipped = ground_absorb(g, GroundContact(np.array([14.0, 2.0]), R), 10 / 30, cfg)
+    assert skipped.updates == 10 and skipped.rejected == 1
+    np.testing.assert_allclose(skipped.x, g.x)
+    # the object really is elsewhere (a new association): five outliers in a row restart
+    for k in range(4):
+        skipped = ground_absorb(skipped, GroundContact(np.array([14.0, 2.0]), R), 1.0, cfg)
+    assert skipped.updates == 1 and skipped.position == pytest.approx([14.0, 2.0])
+
+
+def test_moving_over_ground_needs_speed_significance_and_contacts(default_config: Config) -> None:
+    from appliance.decision.decide import moves_over_ground
+
+    cfg = default_config  # 0.5 m/s, 3 sigma, 10 contacts
+    P = np.diag([0.1, 0.1, 0.2, 0.2]) ** 2
+    walking = GroundTrack(np.array([15.0, -3.0, 0.0, 1.4]), P, 0.0, 30)
+    assert moves_over_ground(walking, cfg)
+    assert not moves_over_ground(GroundTrack(walking.x, P, 0.0, 5), cfg)  # too few contacts
+    assert not moves_over_ground(GroundTrack(np.array([15.0, -3.0, 0.1, 0.3]), P, 0.0, 30), cfg)
+    vague = np.diag([0.1, 0.1, 3.0, 3.0]) ** 2  # 1.4 m/s but +-3 m/s: not shown to move
+    assert not moves_over_ground(GroundTrack(walking.x, vague, 0.0, 30), cfg)
+
+
+def test_fading_memory_recovers_from_a_wrong_start(default_config: Config) -> None:
+    """A state that started with a wrong velocity (a wrong association) recovers faster
+    with the fading memory than without."""
+    def run(memory: float) -> float:
+        cfg = default_config.with_overrides({"ground": {"memory_s": memory}}).ground
+        R = np.diag([0.5, 0.2]) ** 2
+        P = np.diag([0.5, 0.2, 0.3, 0.3]) ** 2
+        g = GroundTrack(np.array([30.0, 0.0, 6.0, 0.0]), P, 0.0, 20)  # believes 6 m/s away
+        sensors = SensorSample(0.0, 10.0, 0.0)
+        for k in range(1, 31):
+            g = ground_update(ground_predict(g, 1 / 30, sensors, cfg),
+                              GroundContact(np.array([30.0 - 10.0 * k / 30, 0.0]), R), k / 30)
+        return abs(float(g.velocity[0]))  # truth: 0 m/s over ground
+
+    assert run(1.0) < 0.8 * run(0.0)

@@ -88,6 +88,6 @@ class TextureBank:
         raise ValueError(f"unknown mover class {kind!r}")
 
 
-@lru_cache(maxsize=4)
+@lru_cache(maxsize=2)
 def _bank_for_seed(seed: int) -> TextureBank:
     return TextureBank.generate(np.random.default_rng(np.random.SeedSequence([seed, 0x7E47])))

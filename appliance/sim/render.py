@@ -32,7 +32,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from appliance.sim.textures import Texture
+from appliance.sim.textures import PAD, Texture
 from appliance.sim.world import FLAT, FaceSet, Layer
 from appliance.vision.geometry import PinholeCamera
 
@@ -90,6 +90,27 @@ def _clip(poly: list[Point], zc: float, keep_above: bool) -> list[Point]:
                 (a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1]), a[2] + s * (b[2] - a[2]))
             )
     return out
+
+
+def _clip_rect(
+    poly: list[tuple[float, float]], u0: float, v0: float, u1: float, v1: float
+) -> list[tuple[float, float]]:
+    """Sutherland-Hodgman: the part of a convex image polygon inside [u0, u1] x [v0, v1]."""
+    for axis, bound, sgn in ((0, u0, 1.0), (0, u1, -1.0), (1, v0, 1.0), (1, v1, -1.0)):
+        out: list[tuple[float, float]] = []
+        n = len(poly)
+        for i in range(n):
+            a, b = poly[i], poly[(i + 1) % n]
+            da, db = sgn * (a[axis] - bound), sgn * (b[axis] - bound)
+            if da >= 0.0:
+                out.append(a)
+            if (da >= 0.0) != (db >= 0.0):
+                t = da / (da - db)
+                out.append((a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])))
+        poly = out
+        if not poly:
+            break
+    return poly
 
 
 class Renderer:
@@ -240,8 +261,9 @@ class Renderer:
             + t
         )
         poly = _clip([tuple(p) for p in quad.tolist()], s.far_m * 0.95, True)
-        if len(poly) >= 3:
-            cv2.fillPoly(img, [self._pts(poly)[0]], int(s.haze), cv2.LINE_8, 4)
+        haze = self._pts(poly) if len(poly) >= 3 else None
+        if haze is not None:
+            cv2.fillPoly(img, [haze[0]], int(s.haze), cv2.LINE_8, 4)
         e = s.ground_extent_m
         corners = np.array(
             [[cx - e, cy - e, 0], [cx + e, cy - e, 0], [cx + e, cy + e, 0], [cx - e, cy + e, 0]],
@@ -264,14 +286,22 @@ class Renderer:
         return self._jobs(ground, R, t)
 
     def _pts(
-        self, poly: Sequence[Point], x0: int = 0, y0: int = 0
-    ) -> tuple[NDArray[np.int32], tuple[float, float, float, float]]:
-        """fillPoly vertices (sub-pixel, relative to (x0, y0)) and the pixel bounds of a polygon."""
+        self, poly: Sequence[Point]
+    ) -> tuple[NDArray[np.int32], tuple[float, float, float, float]] | None:
+        """fillPoly vertices (sub-pixel) and pixel bounds of a polygon in front of the camera,
+        clipped to the image (so a wide ground slab gets a tight ROI even when rolled)."""
         fx, fy, cx, cy = self._k
-        u = [fx * p[0] / p[2] + cx for p in poly]
-        v = [fy * p[1] / p[2] + cy for p in poly]
-        pts = np.rint(np.array([u, v]).T * _SUB - (x0 * _SUB, y0 * _SUB)).astype(np.int32)
-        return pts, (min(u), min(v), max(u), max(v))
+        uv = [(fx * p[0] / p[2] + cx, fy * p[1] / p[2] + cy) for p in poly]
+        us, vs = [q[0] for q in uv], [q[1] for q in uv]
+        bounds = (min(us), min(vs), max(us), max(vs))
+        lo_u, lo_v, hi_u, hi_v = -2.0, -2.0, self.W + 1.0, self.H + 1.0
+        if bounds[0] < lo_u or bounds[1] < lo_v or bounds[2] > hi_u or bounds[3] > hi_v:
+            uv = _clip_rect(uv, lo_u, lo_v, hi_u, hi_v)
+            if len(uv) < 3:
+                return None
+            us, vs = [q[0] for q in uv], [q[1] for q in uv]
+            bounds = (min(us), min(vs), max(us), max(vs))
+        return np.rint(np.array(uv) * _SUB).astype(np.int32), bounds
 
     def _draw_face(self, img: NDArray[np.uint8], ids: NDArray[np.uint16], job: _Job) -> None:
         s = self.s
@@ -291,7 +321,9 @@ class Renderer:
         ):  # markings, kerbs: one anti-aliased polygon
             fog = self._fog(0.5 * (zmin + zmax))
             val = (1.0 - fog) * job.value + fog * s.haze
-            cv2.fillPoly(img, [self._pts(poly)[0]], int(round(val)), cv2.LINE_AA, 4)
+            flat = self._pts(poly)
+            if flat is not None:
+                cv2.fillPoly(img, [flat[0]], int(round(val)), cv2.LINE_AA, 4)
             return
         k0 = max(bisect.bisect_right(self._slab_list, zmin) - 1, 0)
         k1 = bisect.bisect_left(self._slab_list, zmax)
@@ -327,7 +359,10 @@ class Renderer:
         z_rep: float,
     ) -> None:
         s = self.s
-        pts, (umin, vmin, umax, vmax) = self._pts(slab)
+        projected = self._pts(slab)
+        if projected is None:
+            return
+        pts, (umin, vmin, umax, vmax) = projected
         x0, y0 = max(int(umin), 0), max(int(vmin), 0)
         x1, y1 = min(int(umax) + 2, self.W), min(int(vmax) + 2, self.H)
         if x1 <= x0 or y1 <= y0:
@@ -368,7 +403,7 @@ class Renderer:
         if flat:
             warped = np.full((h, w), val, np.uint8)
         else:
-            warped = self._warp(job, slab, x0, y0, w, h)
+            warped = self._warp(job, slab, pts / _SUB, x0, y0, w, h)
             if fog > 0.0:
                 warped = np.asarray(
                     cv2.addWeighted(warped, 1.0 - fog, warped, 0.0, fog * s.haze), np.uint8
@@ -379,9 +414,18 @@ class Renderer:
             np.copyto(ids[y0:y1, x0:x1], job.obj, where=mask.view(bool))
 
     def _warp(
-        self, job: _Job, slab: list[Point], x0: int, y0: int, w: int, h: int
+        self,
+        job: _Job,
+        slab: list[Point],
+        roi_poly: NDArray[np.float64],
+        x0: int,
+        y0: int,
+        w: int,
+        h: int,
     ) -> NDArray[np.uint8]:
-        """The face's texture warped into the ROI (x0, y0, w, h) at the level this slab needs."""
+        """The face's texture warped into the ROI (x0, y0, w, h) at the level this slab needs.
+
+        ``roi_poly`` (N, 2): the polygon drawn, in ROI pixels."""
         tex = self.textures[job.texture]
         su, sv = job.texel
         th, tw = tex.shape
@@ -418,7 +462,8 @@ class Renderer:
         lu = min(max(int(math.floor(math.log2(max(ext_a, 1e-9)) + bias)), 0), mu)
         lv = min(max(int(math.floor(math.log2(max(ext_b, 1e-9)) + bias)), 0), mv)
         lev = tex.levels[lu][lv]
-        fu, fv = tw / lev.shape[1], th / lev.shape[0]  # exact level scale factors
+        hl, wl = lev.shape
+        fu, fv = tw / wl, th / hl  # exact level scale factors
         ol = [o[k] + Xa[k] * (fu - 1.0) / 2.0 + Xb[k] * (fv - 1.0) / 2.0 for k in range(3)]
         c0 = [Xa[k] * fu for k in range(3)]
         c1 = [Xb[k] * fv for k in range(3)]
@@ -437,6 +482,28 @@ class Renderer:
                 [c0[2], c1[2], ol[2]],
             ]
         )
-        border = cv2.BORDER_WRAP if tex.wrap else cv2.BORDER_REPLICATE
-        out = cv2.warpPerspective(lev, H, (w, h), flags=cv2.INTER_LINEAR, borderMode=border)
+        # where the drawn polygon lies in level texels (mask pixels can stick out of it by about
+        # a pixel: the margin), to use the fast transparent border on a tiled or padded source
+        q = np.linalg.solve(H, np.vstack([roi_poly.T, np.ones(len(roi_poly))]))
+        al, bl = q[0] / q[2], q[1] / q[2]
+        margin = 2.0 + 2.0 * max(ext_a / fu, ext_b / fv)
+        src, border = lev, (cv2.BORDER_WRAP if tex.wrap else cv2.BORDER_REPLICATE)
+        shift = None
+        if tex.wrap:
+            tiled, ku, kv = tex.source(lu, lv)
+            sa = math.floor((float(al.min()) - margin) / wl)
+            sb = math.floor((float(bl.min()) - margin) / hl)
+            if (
+                float(al.max()) - sa * wl + margin <= ku * wl - 1
+                and float(bl.max()) - sb * hl + margin <= kv * hl - 1
+            ):
+                src, border, shift = tiled, cv2.BORDER_TRANSPARENT, (sa * wl, sb * hl)
+        elif margin <= PAD:
+            src, border, shift = tex.source(lu, lv)[0], cv2.BORDER_TRANSPARENT, (-PAD, -PAD)
+        if shift is not None:  # texel (0, 0) of src is level texel `shift`
+            H = H @ np.array([[1.0, 0.0, shift[0]], [0.0, 1.0, shift[1]], [0.0, 0.0, 1.0]])
+        out = np.zeros(
+            (h, w), np.uint8
+        )  # pixels a transparent border leaves alone lie off the mask
+        cv2.warpPerspective(src, H, (w, h), dst=out, flags=cv2.INTER_LINEAR, borderMode=border)
         return np.asarray(out, np.uint8)

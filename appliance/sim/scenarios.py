@@ -89,9 +89,10 @@ def near_miss(
 
 
 def pedestrian_crossing_nearside(v: Vehicle) -> Plan:
-    """Euro NCAP CPNCO-25: ego 35 km/h; an adult walks (5 km/h) in from the right, out from
-    between two parked cars; the nearer car hides the body below the roof line while the
-    pedestrian crosses the parking lane. Impact at 25 % of the width from the right."""
+    """Nearside crossing as Euro NCAP CPNA-25 (ego 35 km/h, adult walking 5 km/h in from the
+    right, impact at 25 % of the width), but out from between two parked cars as in the paper's
+    sequence: the nearer car hides the body below its roof line while the pedestrian crosses the
+    parking lane (about 3.0 s to 1.2 s before impact)."""
     ego_speed, T = 35 * KMH, 8.0
     walk = crossing_course(
         ego_speed=ego_speed,

@@ -113,6 +113,18 @@ def _clip_rect(
     return poly
 
 
+def _inverse3(m: list[list[float]]) -> list[list[float]]:
+    """Inverse of a 3x3 matrix (adjugate / determinant), plain floats."""
+    (a, b, c), (d, e, f), (g, h, i) = m
+    A, B, C = e * i - f * h, f * g - d * i, d * h - e * g
+    det = a * A + b * B + c * C
+    return [
+        [A / det, (c * h - b * i) / det, (b * f - c * e) / det],
+        [B / det, (a * i - c * g) / det, (c * d - a * f) / det],
+        [C / det, (b * g - a * h) / det, (a * e - b * d) / det],
+    ]
+
+
 class Renderer:
     """Renders frames of one camera; holds the reusable buffers (not thread-safe)."""
 
@@ -403,7 +415,7 @@ class Renderer:
         if flat:
             warped = np.full((h, w), val, np.uint8)
         else:
-            warped = self._warp(job, slab, pts / _SUB, x0, y0, w, h)
+            warped = self._warp(job, slab, (pts / _SUB).tolist(), x0, y0, w, h)
             if fog > 0.0:
                 warped = np.asarray(
                     cv2.addWeighted(warped, 1.0 - fog, warped, 0.0, fog * s.haze), np.uint8
@@ -417,7 +429,7 @@ class Renderer:
         self,
         job: _Job,
         slab: list[Point],
-        roi_poly: NDArray[np.float64],
+        roi_poly: list[list[float]],
         x0: int,
         y0: int,
         w: int,
@@ -467,43 +479,46 @@ class Renderer:
         ol = [o[k] + Xa[k] * (fu - 1.0) / 2.0 + Xb[k] * (fv - 1.0) / 2.0 for k in range(3)]
         c0 = [Xa[k] * fu for k in range(3)]
         c1 = [Xb[k] * fv for k in range(3)]
-        H = np.array(
+        H = [
             [
-                [
-                    fx * c0[0] + (cx - x0) * c0[2],
-                    fx * c1[0] + (cx - x0) * c1[2],
-                    fx * ol[0] + (cx - x0) * ol[2],
-                ],
-                [
-                    fy * c0[1] + (cy - y0) * c0[2],
-                    fy * c1[1] + (cy - y0) * c1[2],
-                    fy * ol[1] + (cy - y0) * ol[2],
-                ],
-                [c0[2], c1[2], ol[2]],
-            ]
-        )
+                fx * c0[0] + (cx - x0) * c0[2],
+                fx * c1[0] + (cx - x0) * c1[2],
+                fx * ol[0] + (cx - x0) * ol[2],
+            ],
+            [
+                fy * c0[1] + (cy - y0) * c0[2],
+                fy * c1[1] + (cy - y0) * c1[2],
+                fy * ol[1] + (cy - y0) * ol[2],
+            ],
+            [c0[2], c1[2], ol[2]],
+        ]
         # where the drawn polygon lies in level texels (mask pixels can stick out of it by about
         # a pixel: the margin), to use the fast transparent border on a tiled or padded source
-        q = np.linalg.solve(H, np.vstack([roi_poly.T, np.ones(len(roi_poly))]))
-        al, bl = q[0] / q[2], q[1] / q[2]
+        Hi = _inverse3(H)
+        al, bl = [], []
+        for u, v in roi_poly:
+            wq = Hi[2][0] * u + Hi[2][1] * v + Hi[2][2]
+            al.append((Hi[0][0] * u + Hi[0][1] * v + Hi[0][2]) / wq)
+            bl.append((Hi[1][0] * u + Hi[1][1] * v + Hi[1][2]) / wq)
         margin = 2.0 + 2.0 * max(ext_a / fu, ext_b / fv)
         src, border = lev, (cv2.BORDER_WRAP if tex.wrap else cv2.BORDER_REPLICATE)
         shift = None
         if tex.wrap:
             tiled, ku, kv = tex.source(lu, lv)
-            sa = math.floor((float(al.min()) - margin) / wl)
-            sb = math.floor((float(bl.min()) - margin) / hl)
+            sa = math.floor((min(al) - margin) / wl)
+            sb = math.floor((min(bl) - margin) / hl)
             if (
-                float(al.max()) - sa * wl + margin <= ku * wl - 1
-                and float(bl.max()) - sb * hl + margin <= kv * hl - 1
+                max(al) - sa * wl + margin <= ku * wl - 1
+                and max(bl) - sb * hl + margin <= kv * hl - 1
             ):
                 src, border, shift = tiled, cv2.BORDER_TRANSPARENT, (sa * wl, sb * hl)
         elif margin <= PAD:
             src, border, shift = tex.source(lu, lv)[0], cv2.BORDER_TRANSPARENT, (-PAD, -PAD)
-        if shift is not None:  # texel (0, 0) of src is level texel `shift`
-            H = H @ np.array([[1.0, 0.0, shift[0]], [0.0, 1.0, shift[1]], [0.0, 0.0, 1.0]])
-        out = np.zeros(
-            (h, w), np.uint8
-        )  # pixels a transparent border leaves alone lie off the mask
-        cv2.warpPerspective(src, H, (w, h), dst=out, flags=cv2.INTER_LINEAR, borderMode=border)
+        if shift is not None:  # texel (0, 0) of src is level texel `shift`: H = H @ T(shift)
+            for r in H:
+                r[2] += r[0] * shift[0] + r[1] * shift[1]
+        out = np.zeros((h, w), np.uint8)  # pixels a transparent border leaves lie off the mask
+        cv2.warpPerspective(
+            src, np.array(H), (w, h), dst=out, flags=cv2.INTER_LINEAR, borderMode=border
+        )
         return np.asarray(out, np.uint8)

@@ -250,9 +250,13 @@ def boot(kernel: Kernel, job: Path, memory_mb: int = 1024, accel: str = "tcg", c
                         raise VmFailure(f"guest hung during boot: no job start after "
                                         f"{boot_timeout_s:.0f} s, QEMU killed; console: "
                                         f"{seen.last()}") from None
+                    # the job's output file lives on a cached 9p mount: what the guest had not
+                    # written back when it was killed is only on the console, which tee also feeds
+                    last = _last_line(job / "output")
+                    if last == "(no output)":
+                        last = seen.last()
                     raise VmFailure(f"guest hung: job still running after {timeout_s:.0f} s, "
-                                    f"QEMU killed; last output: {_last_line(job / 'output')}"
-                                    ) from None
+                                    f"QEMU killed; last output: {last}") from None
                 if event.kind == "eof":
                     break
                 if started is None and event.kind == "error":

@@ -42,7 +42,8 @@ def _timed(drive: SimulatedDrive, render_s: list[float]) -> Iterator[SimStep]:
 
 
 def main(argv: list[str]) -> int:
-    from appliance.sim.drive import SimulatedDrive, write_recording
+    from appliance.sim.drive import SimulatedDrive
+    from appliance.sim.recorder import write_recording
     from appliance.sim.scenarios import SCENARIOS
 
     ap = argparse.ArgumentParser(prog="python -m benchmarks sim_speed")

@@ -14,6 +14,7 @@ import cv2
 import numpy as np
 import pytest
 
+from appliance.sim import object_textures as ot
 from appliance.sim import textures as tx
 from appliance.sim.drive import SimStep, SimulatedDrive
 from appliance.sim.effects import Effects
@@ -128,7 +129,7 @@ def _skin(tex: int) -> BoxSkin:
 
 def _textures() -> list[tx.Texture]:
     rng = np.random.default_rng(0)
-    return [tx.asphalt(rng, size=256), tx.facade(rng, 0), tx.facade(rng, 1)]
+    return [tx.asphalt(rng, size=256), ot.facade(rng, 0), ot.facade(rng, 1)]
 
 
 def _camera_from_world(y: float = 0.0) -> np.ndarray:
@@ -229,7 +230,7 @@ def test_prefiltered_levels_keep_distant_texture_from_aliasing() -> None:
 
 def test_wrapping_textures_tile_seamlessly_at_every_level() -> None:
     rng = np.random.default_rng(2)
-    for tex in (tx.asphalt(rng, size=256), tx.paving(rng), tx.facade(rng, 1)):
+    for tex in (tx.asphalt(rng, size=256), tx.paving(rng), ot.facade(rng, 1)):
         base = tex.levels[0][0]
         tiled = tx.make_texture("tiled", np.tile(base, (2, 2)), True)
         for lu in range(len(tex.levels)):

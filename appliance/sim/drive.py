@@ -11,7 +11,7 @@ Recording clock: the first frame is at ``T0 = 1000.0`` s; CAN and PTU start
 from __future__ import annotations
 
 import zlib
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from appliance import __version__
 from appliance.config import Config, load_config, resource_path
 from appliance.errors import UsageError
-from appliance.recording import CanDecoding, RecordingMeta, RecordingWriter
+from appliance.recording import CanDecoding, RecordingMeta
 from appliance.sim import sensors
 from appliance.sim.collision import Vehicle, collision_time, relative_pose, relative_velocity
 from appliance.sim.effects import Effects, EffectsPipeline
@@ -33,7 +33,7 @@ from appliance.sim.movers import SIZES, Trajectory
 from appliance.sim.render import Renderer
 from appliance.sim.scenarios import SCENARIOS, Plan
 from appliance.sim.street import Centreline, KeepClear, StreetBuilder
-from appliance.sim.truth import project_box, visible_fraction
+from appliance.sim.truth import boxes_near_image, project_box, truth_record
 from appliance.sim.world import Body, StaticObject, box_faces
 from appliance.vision.geometry import (
     PinholeCamera,
@@ -303,24 +303,12 @@ class SimulatedDrive:
                 continue
             centre, _ = relative_pose(self.path, mv.trajectory, tau_a)
             vel = relative_velocity(self.path, mv.trajectory, tau_a)
-            out[str(mv.body.obj)] = self._record(view, ids, mv.body.obj, centre[0], vel[0])
+            out[str(mv.body.obj)] = truth_record(view, ids, mv.body.obj, centre[0], vel[0])
         if not self.parked:
             return out
         # parked cars: a quick vectorised test first, the exact projection only for candidates
-        Pc = self._parked_corners @ T_cw[:3, :3].T + T_cw[:3, 3]
-        z = Pc[..., 2]
         cam = self.camera
-        ahead = (z > 0.3).any(1)
-        zc = np.maximum(z, 0.3)
-        u = cam.fx * Pc[..., 0] / zc + cam.cx
-        v = cam.fy * Pc[..., 1] / zc + cam.cy
-        inside = (
-            ahead
-            & (u.max(1) >= -50)
-            & (u.min(1) <= cam.width + 50)
-            & (v.max(1) >= -50)
-            & (v.min(1) <= cam.height + 50)
-        )
+        inside = boxes_near_image(cam, T_cw, self._parked_corners)
         x, y, psi = (float(a) for a in self.path.pose(tau))
         vx, vy = (float(a) for a in self.path.velocity(tau))
         w = float(self.plan.ego.yaw_rate_at(tau))
@@ -333,25 +321,10 @@ class SimulatedDrive:
             dx, dy = obj.x - x, obj.y - y
             px, py = c * dx + sn * dy, -sn * dx + c * dy
             rvx, rvy = -(c * vx + sn * vy), -(-sn * vx + c * vy)
-            out[str(obj.body.obj)] = self._record(
+            out[str(obj.body.obj)] = truth_record(
                 view, ids, obj.body.obj, np.array([px, py]), np.array([rvx + w * py, rvy - w * px])
             )
         return out
-
-    @staticmethod
-    def _record(
-        view: Any,
-        ids: NDArray[np.uint16],
-        obj: int,
-        pos: NDArray[np.float64],
-        vel: NDArray[np.float64],
-    ) -> dict[str, Any]:
-        return {
-            "bbox": [_r(b, 2) for b in view.bbox],
-            "visible": _r(visible_fraction(view, ids, obj), 3),
-            "pos_vehicle": [_r(pos[0], 4), _r(pos[1], 4)],
-            "vel_vehicle": [_r(vel[0], 4), _r(vel[1], 4)],
-        }
 
     # ------------------------------------------------------------ the stream
 
@@ -433,47 +406,6 @@ def simulate(
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise UsageError(f"{out}: output directory exists and is not empty")
     drive = SimulatedDrive(scenario, seed, duration, cfg, effects=effects)
+    from appliance.sim.recorder import write_recording  # (recorder imports this module)
+
     return write_recording(drive, out, video, progress)
-
-
-def write_recording(
-    drive: SimulatedDrive,
-    out_dir: str | Path,
-    video: str = "mkv",
-    progress: bool = False,
-    steps: Iterable[SimStep] | None = None,
-) -> Path:
-    """Stream ``drive`` (or the given ``steps`` of it) into a new recording directory.
-
-    ``truth.json`` is written last: a killed simulator leaves a recording the reader rejects
-    (frame count) and without truth.
-    """
-    out = Path(out_dir)
-    objects: dict[int, dict[str, Any]] = {
-        o["id"]: dict(o, frames={}) for o in drive.truth_header["objects"]
-    }
-    poses: dict[str, Any] = {}
-    it: Iterable[SimStep] = drive if steps is None else steps
-    if progress:
-        from tqdm import tqdm
-
-        it = tqdm(it, total=drive.n_frames, unit="frame", desc=drive.name, leave=False)
-    with RecordingWriter(out, drive.meta, video=video, fps=sensors.FPS) as w:
-        for step in it:
-            w.write_frame(step.image, step.t)
-            for msg in step.can_messages:
-                w.write_can(msg)
-            for t, pan, tilt in step.ptu_samples:
-                w.write_ptu(t, pan, tilt)
-            poses[str(step.index)] = step.truth_frame["camera_pose"]
-            for oid, rec in step.truth_frame["objects"].items():
-                objects[int(oid)]["frames"][str(step.index)] = rec
-        truth = {
-            k: drive.truth_header[k]
-            for k in ("scenario", "collision", "collision_t", "collision_object")
-        }
-        truth["seed"] = drive.seed
-        truth["objects"] = [o for o in objects.values() if o["frames"] or o["moving"]]
-        truth["camera_poses"] = poses
-        w.write_truth(truth)
-    return out

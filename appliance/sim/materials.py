@@ -7,6 +7,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from appliance.sim import object_textures as ot
 from appliance.sim import textures as tx
 from appliance.sim.world import BoxSkin
 
@@ -36,24 +37,24 @@ class TextureBank:
         bank.add(tx.asphalt(rng))
         bank.add(tx.paving(rng))
         bank.add(tx.kerb(rng))
-        bank.add(tx.roof(rng))
+        bank.add(ot.roof(rng))
         for k in range(N_FACADES):
-            bank.add(tx.facade(rng, k))
+            bank.add(ot.facade(rng, k))
         for k in range(N_CAR_SKINS):
             body = float(rng.uniform(40, 220))
-            bank.add(tx.make_texture(f"car_side{k}", tx.car_side(rng, body), False))
-            bank.add(tx.make_texture(f"car_front{k}", tx.car_end(rng, body, True), False))
-            bank.add(tx.make_texture(f"car_rear{k}", tx.car_end(rng, body, False), False))
+            bank.add(tx.make_texture(f"car_side{k}", ot.car_side(rng, body), False))
+            bank.add(tx.make_texture(f"car_front{k}", ot.car_end(rng, body, True), False))
+            bank.add(tx.make_texture(f"car_rear{k}", ot.car_end(rng, body, False), False))
         for k in range(N_PEOPLE):
             sub = np.random.default_rng(rng.integers(2**63))
-            bank.add(tx.make_texture(f"ped_front{k}", tx.pedestrian(sub, False), False))
+            bank.add(tx.make_texture(f"ped_front{k}", ot.pedestrian(sub, False), False))
             sub = np.random.default_rng(rng.integers(2**63))
-            bank.add(tx.make_texture(f"ped_side{k}", tx.pedestrian(sub, True), False))
+            bank.add(tx.make_texture(f"ped_side{k}", ot.pedestrian(sub, True), False))
         for k in range(2):
-            bank.add(tx.make_texture(f"cyc_side{k}", tx.cyclist(rng, True), False))
-            bank.add(tx.make_texture(f"cyc_front{k}", tx.cyclist(rng, False), False))
-        bank.add(tx.make_texture("pole", tx.pole(rng), False))
-        bank.add(tx.make_texture("sign", tx.sign(rng), False))
+            bank.add(tx.make_texture(f"cyc_side{k}", ot.cyclist(rng, True), False))
+            bank.add(tx.make_texture(f"cyc_front{k}", ot.cyclist(rng, False), False))
+        bank.add(tx.make_texture("pole", ot.pole(rng), False))
+        bank.add(tx.make_texture("sign", ot.sign(rng), False))
         return bank
 
     @staticmethod

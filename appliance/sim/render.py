@@ -23,7 +23,6 @@ lens distortion.
 from __future__ import annotations
 
 import bisect
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -32,12 +31,13 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from appliance.sim.textures import PAD, Texture
+from appliance.sim.polygons import Point, clip_rect, clip_z
+from appliance.sim.texture_warp import FaceFrame, warp_texture
+from appliance.sim.textures import Texture
 from appliance.sim.world import FLAT, FaceSet, Layer
 from appliance.vision.geometry import PinholeCamera
 
 FloatArray = NDArray[np.float64]
-Point = tuple[float, float, float]
 _SUB = 16  # fillPoly sub-pixel factor (shift = 4 bits)
 TINY_PX = 48  # slabs whose bounding box is at most this many pixels get the texture's mean
 
@@ -72,57 +72,6 @@ class RenderSettings:
     haze: float = 178.0
     lod_bias: float = 0.5
     ground_extent_m: float = 250.0
-
-
-def _clip(poly: list[Point], zc: float, keep_above: bool) -> list[Point]:
-    """Sutherland-Hodgman: the part of a convex polygon with z >= zc (or <= zc)."""
-    out: list[Point] = []
-    n = len(poly)
-    sgn = 1.0 if keep_above else -1.0
-    for i in range(n):
-        a, b = poly[i], poly[(i + 1) % n]
-        da, db = sgn * (a[2] - zc), sgn * (b[2] - zc)
-        if da >= 0.0:
-            out.append(a)
-        if (da >= 0.0) != (db >= 0.0):
-            s = da / (da - db)
-            out.append(
-                (a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1]), a[2] + s * (b[2] - a[2]))
-            )
-    return out
-
-
-def _clip_rect(
-    poly: list[tuple[float, float]], u0: float, v0: float, u1: float, v1: float
-) -> list[tuple[float, float]]:
-    """Sutherland-Hodgman: the part of a convex image polygon inside [u0, u1] x [v0, v1]."""
-    for axis, bound, sgn in ((0, u0, 1.0), (0, u1, -1.0), (1, v0, 1.0), (1, v1, -1.0)):
-        out: list[tuple[float, float]] = []
-        n = len(poly)
-        for i in range(n):
-            a, b = poly[i], poly[(i + 1) % n]
-            da, db = sgn * (a[axis] - bound), sgn * (b[axis] - bound)
-            if da >= 0.0:
-                out.append(a)
-            if (da >= 0.0) != (db >= 0.0):
-                t = da / (da - db)
-                out.append((a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])))
-        poly = out
-        if not poly:
-            break
-    return poly
-
-
-def _inverse3(m: list[list[float]]) -> list[list[float]]:
-    """Inverse of a 3x3 matrix (adjugate / determinant), plain floats."""
-    (a, b, c), (d, e, f), (g, h, i) = m
-    A, B, C = e * i - f * h, f * g - d * i, d * h - e * g
-    det = a * A + b * B + c * C
-    return [
-        [A / det, (c * h - b * i) / det, (b * f - c * e) / det],
-        [B / det, (a * i - c * g) / det, (c * d - a * f) / det],
-        [C / det, (b * g - a * h) / det, (a * e - b * d) / det],
-    ]
 
 
 class Renderer:
@@ -272,7 +221,7 @@ class Renderer:
             @ R.T
             + t
         )
-        poly = _clip([tuple(p) for p in quad.tolist()], s.far_m * 0.95, True)
+        poly = clip_z([tuple(p) for p in quad.tolist()], s.far_m * 0.95, True)
         haze = self._pts(poly) if len(poly) >= 3 else None
         if haze is not None:
             cv2.fillPoly(img, [haze[0]], int(s.haze), cv2.LINE_8, 4)
@@ -308,7 +257,7 @@ class Renderer:
         bounds = (min(us), min(vs), max(us), max(vs))
         lo_u, lo_v, hi_u, hi_v = -2.0, -2.0, self.W + 1.0, self.H + 1.0
         if bounds[0] < lo_u or bounds[1] < lo_v or bounds[2] > hi_u or bounds[3] > hi_v:
-            uv = _clip_rect(uv, lo_u, lo_v, hi_u, hi_v)
+            uv = clip_rect(uv, lo_u, lo_v, hi_u, hi_v)
             if len(uv) < 3:
                 return None
             us, vs = [q[0] for q in uv], [q[1] for q in uv]
@@ -321,10 +270,10 @@ class Renderer:
         zs = [p[2] for p in poly]
         zmin, zmax = min(zs), max(zs)
         if zmin < s.near_m:
-            poly = _clip(poly, s.near_m, True)
+            poly = clip_z(poly, s.near_m, True)
             zmin = s.near_m
         if zmax > s.far_m:
-            poly = _clip(poly, s.far_m, False)
+            poly = clip_z(poly, s.far_m, False)
             zmax = s.far_m
         if len(poly) < 3:
             return
@@ -352,9 +301,9 @@ class Renderer:
         for j in range(len(bounds) - 1):
             slab = poly
             if j > 0:
-                slab = _clip(slab, bounds[j], True)
+                slab = clip_z(slab, bounds[j], True)
             if j < len(bounds) - 2:
-                slab = _clip(slab, bounds[j + 1], False)
+                slab = clip_z(slab, bounds[j + 1], False)
             if len(slab) >= 3:
                 self._draw_slab(img, ids, job, slab, (bounds[j] * bounds[j + 1]) ** 0.5)
 
@@ -415,7 +364,16 @@ class Renderer:
         if flat:
             warped = np.full((h, w), val, np.uint8)
         else:
-            warped = self._warp(job, slab, (pts / _SUB).tolist(), x0, y0, w, h)
+            frame = FaceFrame(job.o_c, job.eu_c, job.ev_c, job.texel)
+            warped = warp_texture(
+                self.textures[job.texture],
+                frame,
+                slab,
+                (pts / _SUB).tolist(),
+                (x0, y0, w, h),
+                self._k,
+                self.s.lod_bias,
+            )
             if fog > 0.0:
                 warped = np.asarray(
                     cv2.addWeighted(warped, 1.0 - fog, warped, 0.0, fog * s.haze), np.uint8
@@ -424,101 +382,3 @@ class Renderer:
         if invz is not None:
             cv2.copyTo(invz, mask, self.zbuf[y0:y1, x0:x1])
             np.copyto(ids[y0:y1, x0:x1], job.obj, where=mask.view(bool))
-
-    def _warp(
-        self,
-        job: _Job,
-        slab: list[Point],
-        roi_poly: list[list[float]],
-        x0: int,
-        y0: int,
-        w: int,
-        h: int,
-    ) -> NDArray[np.uint8]:
-        """The face's texture warped into the ROI (x0, y0, w, h) at the level this slab needs.
-
-        ``roi_poly`` (N, 2): the polygon drawn, in ROI pixels."""
-        tex = self.textures[job.texture]
-        su, sv = job.texel
-        th, tw = tex.shape
-        n = len(slab)
-        C = [sum(c) / n for c in zip(*slab)]
-        o = list(job.o_c)
-        eu, ev = job.eu_c, job.ev_c
-        rel = [C[k] - o[k] for k in range(3)]
-        a = (rel[0] * eu[0] + rel[1] * eu[1] + rel[2] * eu[2]) / su
-        b = (rel[0] * ev[0] + rel[1] * ev[1] + rel[2] * ev[2]) / sv
-        if tex.wrap:  # shift the origin by whole periods so texture coordinates stay small
-            ku, kv = math.floor(a / tw), math.floor(b / th)
-            o = [o[k] + ku * tw * su * eu[k] + kv * th * sv * ev[k] for k in range(3)]
-            a, b = a - ku * tw, b - kv * th
-        fx, fy, cx, cy = self._k
-        # camera-frame point of texel (a, b): X = o + a su eu + b sv ev; image = K X (homography H0)
-        Xa = [su * eu[k] for k in range(3)]
-        Xb = [sv * ev[k] for k in range(3)]
-        X = [o[k] + a * Xa[k] + b * Xb[k] for k in range(3)]
-        u, v = fx * X[0] / X[2] + cx, fy * X[1] / X[2] + cy
-        # Jacobian d(u, v)/d(a, b) of the projection at the slab centre
-        j00 = (fx * Xa[0] + cx * Xa[2] - u * Xa[2]) / X[2]
-        j01 = (fx * Xb[0] + cx * Xb[2] - u * Xb[2]) / X[2]
-        j10 = (fy * Xa[1] + cy * Xa[2] - v * Xa[2]) / X[2]
-        j11 = (fy * Xb[1] + cy * Xb[2] - v * Xb[2]) / X[2]
-        det = j00 * j11 - j01 * j10
-        if abs(det) < 1e-12:
-            ext_a = ext_b = 1e6
-        else:  # extent of one pixel's footprint along each texture axis, texels
-            ext_a = (abs(j11) + abs(j01)) / abs(det)
-            ext_b = (abs(j10) + abs(j00)) / abs(det)
-        mu, mv = tex.max_levels
-        bias = self.s.lod_bias
-        lu = min(max(int(math.floor(math.log2(max(ext_a, 1e-9)) + bias)), 0), mu)
-        lv = min(max(int(math.floor(math.log2(max(ext_b, 1e-9)) + bias)), 0), mv)
-        lev = tex.levels[lu][lv]
-        hl, wl = lev.shape
-        fu, fv = tw / wl, th / hl  # exact level scale factors
-        ol = [o[k] + Xa[k] * (fu - 1.0) / 2.0 + Xb[k] * (fv - 1.0) / 2.0 for k in range(3)]
-        c0 = [Xa[k] * fu for k in range(3)]
-        c1 = [Xb[k] * fv for k in range(3)]
-        H = [
-            [
-                fx * c0[0] + (cx - x0) * c0[2],
-                fx * c1[0] + (cx - x0) * c1[2],
-                fx * ol[0] + (cx - x0) * ol[2],
-            ],
-            [
-                fy * c0[1] + (cy - y0) * c0[2],
-                fy * c1[1] + (cy - y0) * c1[2],
-                fy * ol[1] + (cy - y0) * ol[2],
-            ],
-            [c0[2], c1[2], ol[2]],
-        ]
-        # where the drawn polygon lies in level texels (mask pixels can stick out of it by about
-        # a pixel: the margin), to use the fast transparent border on a tiled or padded source
-        Hi = _inverse3(H)
-        al, bl = [], []
-        for u, v in roi_poly:
-            wq = Hi[2][0] * u + Hi[2][1] * v + Hi[2][2]
-            al.append((Hi[0][0] * u + Hi[0][1] * v + Hi[0][2]) / wq)
-            bl.append((Hi[1][0] * u + Hi[1][1] * v + Hi[1][2]) / wq)
-        margin = 2.0 + 2.0 * max(ext_a / fu, ext_b / fv)
-        src, border = lev, (cv2.BORDER_WRAP if tex.wrap else cv2.BORDER_REPLICATE)
-        shift = None
-        if tex.wrap:
-            tiled, ku, kv = tex.source(lu, lv)
-            sa = math.floor((min(al) - margin) / wl)
-            sb = math.floor((min(bl) - margin) / hl)
-            if (
-                max(al) - sa * wl + margin <= ku * wl - 1
-                and max(bl) - sb * hl + margin <= kv * hl - 1
-            ):
-                src, border, shift = tiled, cv2.BORDER_TRANSPARENT, (sa * wl, sb * hl)
-        elif margin <= PAD:
-            src, border, shift = tex.source(lu, lv)[0], cv2.BORDER_TRANSPARENT, (-PAD, -PAD)
-        if shift is not None:  # texel (0, 0) of src is level texel `shift`: H = H @ T(shift)
-            for r in H:
-                r[2] += r[0] * shift[0] + r[1] * shift[1]
-        out = np.zeros((h, w), np.uint8)  # pixels a transparent border leaves lie off the mask
-        cv2.warpPerspective(
-            src, np.array(H), (w, h), dst=out, flags=cv2.INTER_LINEAR, borderMode=border
-        )
-        return np.asarray(out, np.uint8)

@@ -159,7 +159,7 @@ def pink_noise(
     return (out / (std if std > 0 else 1.0)).astype(np.float32)
 
 
-def _wrapped(draw: Callable[[int, int], None], w: int, h: int) -> None:
+def wrapped_draw(draw: Callable[[int, int], None], w: int, h: int) -> None:
     """Call ``draw(dx, dy)`` for the 3x3 periodic copies so shapes wrap around."""
     for dy in (-h, 0, h):
         for dx in (-w, 0, w):
@@ -175,12 +175,12 @@ def blur_wrap(img: NDArray[np.floating], sigma: float) -> F32:
     return np.ascontiguousarray(out[r : r + h, r : r + w])
 
 
-def _to_u8(img: NDArray[Any]) -> U8:
+def to_u8(img: NDArray[Any]) -> U8:
     out: U8 = np.clip(np.rint(img), 0, 255).astype(np.uint8)
     return out
 
 
-def _grain(rng: np.random.Generator, shape: tuple[int, int], amp: float, blur: float = 0.6) -> F32:
+def grain(rng: np.random.Generator, shape: tuple[int, int], amp: float, blur: float = 0.6) -> F32:
     g = rng.standard_normal(shape).astype(np.float32)
     if blur > 0:
         g = blur_wrap(g, blur)
@@ -209,7 +209,7 @@ def asphalt(rng: np.random.Generator, size: int = 1024, texel_m: float = 0.01) -
         def draw(dx: int, dy: int, box: np.ndarray = box, val: float = val) -> None:
             cv2.fillConvexPoly(patch, np.rint(box + (dx, dy)).astype(np.int32), val)
 
-        _wrapped(draw, size, size)
+        wrapped_draw(draw, size, size)
     img += patch
     cracks = np.zeros(shape, np.float32)
     for _ in range(int(rng.integers(6, 12))):
@@ -225,12 +225,12 @@ def asphalt(rng: np.random.Generator, size: int = 1024, texel_m: float = 0.01) -
         def draw_c(dx: int, dy: int, poly: np.ndarray = poly) -> None:
             cv2.polylines(cracks, [poly + (dx, dy)], False, -30.0, 2)
 
-        _wrapped(draw_c, size, size)
+        wrapped_draw(draw_c, size, size)
     img += cracks
-    img += _grain(rng, shape, 7.0, 0.7)
+    img += grain(rng, shape, 7.0, 0.7)
     img += 10.0 * (rng.random(shape) < 0.004)  # bright chippings
     img = blur_wrap(img.astype(np.float32), 0.6)
-    return make_texture("asphalt", _to_u8(img), True, (texel_m, texel_m))
+    return make_texture("asphalt", to_u8(img), True, (texel_m, texel_m))
 
 
 def paving(
@@ -256,9 +256,9 @@ def paving(
                     -1,
                 )
 
-            _wrapped(draw, size, size)
+            wrapped_draw(draw, size, size)
     img += 6.0 * pink_noise(rng, shape, beta=1.0, low_cut=2.0)
-    img += _grain(rng, shape, 6.0, 0.8)
+    img += grain(rng, shape, 6.0, 0.8)
     for j in range(n):  # joints
         img[j * slab : j * slab + 2, :] = base - 55
         shift = (slab // 2) * (j % 2)
@@ -266,7 +266,7 @@ def paving(
             x = (i * slab + shift) % size
             img[j * slab : (j + 1) * slab, x : x + 2] = base - 55
     img = blur_wrap(img, 0.7)
-    return make_texture("paving", _to_u8(img), True, (texel_m, texel_m))
+    return make_texture("paving", to_u8(img), True, (texel_m, texel_m))
 
 
 def kerb(rng: np.random.Generator, texel_m: float = 0.015625) -> Texture:
@@ -277,203 +277,5 @@ def kerb(rng: np.random.Generator, texel_m: float = 0.015625) -> Texture:
         img[:, i * 64 : (i + 1) * 64] = float(rng.uniform(165, 200))
         img[:, i * 64 : i * 64 + 2] = 90
     img[:2, :] += 15
-    img += _grain(rng, (h, w), 5.0, 0.5)
-    return make_texture("kerb", _to_u8(img), True, (texel_m, texel_m), min_size=1)
-
-
-# ---------------------------------------------------------------- buildings
-
-
-def facade(rng: np.random.Generator, index: int, texel_m: float = 0.02) -> Texture:
-    """One floor (3.2 m) and two window bays (2 x 2.56 m) of a facade; wraps.
-
-    Styles: plaster, brick, or a glass grid; windows with frames, sills and
-    reflections.
-    """
-    w, h = 256, 160
-    style = index % 3
-    wall = float(rng.uniform(110, 200))
-    img = np.full((h, w), wall, np.float32)
-    if style == 1:  # bricks, 16 x 4 texels (0.32 x 0.08 m)
-        for r in range(h // 4):
-            off = 8 * (r % 2)
-            for c in range(w // 16 + 1):
-                val = wall + float(rng.normal(0, 10))
-                x0 = (c * 16 + off) % w
-
-                def draw(dx: int, dy: int, x0: int = x0, r: int = r, val: float = val) -> None:
-                    cv2.rectangle(
-                        img, (x0 + dx, r * 4 + dy), (x0 + 14 + dx, r * 4 + 2 + dy), val, -1
-                    )
-
-                _wrapped(draw, w, h)
-        img[3::4, :] = wall - 40
-    img += 8.0 * pink_noise(rng, (h, w), beta=1.2, low_cut=1.0)
-    win_w = int(rng.integers(50, 76)) if style != 2 else 110
-    win_h = int(rng.integers(60, 86)) if style != 2 else 120
-    top = int(rng.integers(30, 50)) if style != 2 else 20
-    glass = float(rng.uniform(30, 70))
-    frame = float(np.clip(wall + rng.choice([-70.0, 50.0]), 20, 240))
-    for bay in range(2):
-        x0 = bay * 128 + (128 - win_w) // 2
-        cv2.rectangle(img, (x0 - 4, top - 4), (x0 + win_w + 3, top + win_h + 3), frame, -1)
-        refl = np.linspace(0, 1, win_h, dtype=np.float32)[:, None] * float(rng.uniform(10, 40))
-        pane = glass + refl + 6.0 * pink_noise(rng, (win_h, win_w), beta=1.5, low_cut=1.0)
-        img[top : top + win_h, x0 : x0 + win_w] = pane
-        mid = x0 + win_w // 2
-        cv2.line(img, (mid, top), (mid, top + win_h - 1), frame, 3)  # mullion
-        cv2.line(
-            img, (x0, top + win_h // 3), (x0 + win_w - 1, top + win_h // 3), frame, 2
-        )  # transom
-        cv2.rectangle(
-            img,
-            (x0 - 8, top + win_h + 4),
-            (x0 + win_w + 7, top + win_h + 9),
-            float(np.clip(wall + 40, 0, 255)),
-            -1,
-        )  # sill
-        if rng.random() < 0.5:  # curtain
-            cw = int(rng.integers(10, win_w // 2))
-            img[top : top + win_h, x0 : x0 + cw] = float(rng.uniform(120, 220))
-    if style == 2:
-        img[:, ::64] = frame
-    cv2.line(img, (0, h - 2), (w - 1, h - 2), wall - 30, 2)  # floor band
-    img += _grain(rng, (h, w), 4.0, 0.6)
-    img = blur_wrap(img, 0.6)
-    return make_texture(f"facade{index}", _to_u8(img), True, (texel_m, texel_m))
-
-
-def roof(rng: np.random.Generator) -> Texture:
-    img = 70.0 + 15.0 * pink_noise(rng, (128, 128), beta=1.0, low_cut=1.0)
-    return make_texture("roof", _to_u8(img), True, (0.05, 0.05))
-
-
-# ---------------------------------------------------------------- vehicles, people, poles
-
-
-def car_side(rng: np.random.Generator, body: float) -> U8:
-    """Side of a car, 256 x 84 texels (front to the right), stretched onto the box side."""
-    w, h = 256, 84
-    img = np.full((h, w), body, np.float32)
-    img[: int(h * 0.42)] = body - 12.0  # roof pillars and cabin (the box is the car's outline)
-    glass = np.array([[50, 33], [74, 9], [170, 9], [205, 33]], np.int32)
-    cv2.fillConvexPoly(img, glass, float(rng.uniform(25, 60)))
-    cv2.line(img, (122, 8), (122, 34), body, 5)  # B pillar
-    cv2.line(img, (90, 36), (90, 70), body - 35, 1)  # door gaps
-    cv2.line(img, (160, 36), (160, 70), body - 35, 1)
-    cv2.rectangle(img, (100, 44), (110, 46), body + 40, -1)  # handles
-    cv2.rectangle(img, (170, 44), (180, 46), body + 40, -1)
-    img[int(h * 0.78) :] = body - 45  # sill / shadow
-    for cx in (52, 204):
-        cv2.circle(img, (cx, 70), 14, 25.0, -1)
-        cv2.circle(img, (cx, 70), 7, 150.0, -1)
-        cv2.circle(img, (cx, 70), 2, 60.0, -1)
-    img += 4.0 * pink_noise(rng, (h, w), beta=1.0, low_cut=1.0)
-    return _to_u8(cv2.GaussianBlur(img, (0, 0), 0.6))
-
-
-def car_end(rng: np.random.Generator, body: float, front: bool) -> U8:
-    """Front or rear of a car, 96 x 80 texels."""
-    w, h = 96, 80
-    img = np.full((h, w), body - 12.0, np.float32)
-    cv2.fillConvexPoly(
-        img, np.array([[17, 32], [23, 8], [73, 8], [79, 32]], np.int32), float(rng.uniform(25, 60))
-    )
-    img[34:] = body
-    lamp = 230.0 if front else 70.0
-    cv2.rectangle(img, (4, 40), (22, 50), lamp, -1)
-    cv2.rectangle(img, (74, 40), (92, 50), lamp, -1)
-    if front:
-        cv2.rectangle(img, (28, 44), (68, 56), 35.0, -1)
-        for x in range(30, 68, 5):
-            cv2.line(img, (x, 45), (x, 55), 80.0, 1)
-    cv2.rectangle(img, (34, 58), (62, 66), 235.0, -1)  # number plate
-    for x in range(36, 60, 5):  # characters
-        cv2.rectangle(img, (x, 60), (x + 2, 64), 20.0, -1)
-    img[68:] = 30.0  # bumper shadow, tyres
-    img += 3.0 * pink_noise(rng, (h, w), beta=1.0, low_cut=1.0)
-    return _to_u8(cv2.GaussianBlur(img, (0, 0), 0.6))
-
-
-def pedestrian(rng: np.random.Generator, side: bool) -> U8:
-    """A person, 64 x 224 texels (front or side view), stretched onto the box face."""
-    w, h = 64, 224
-    bg = float(rng.uniform(90, 140))
-    img = np.full((h, w), bg, np.float32)
-    shirt, trousers = float(rng.uniform(30, 230)), float(rng.uniform(20, 120))
-    half = 14 if side else 22
-    cx = w // 2
-    cv2.ellipse(img, (cx, 16), (9 if side else 11, 14), 0, 0, 360, 190.0, -1)  # head
-    cv2.ellipse(img, (cx, 9), (10 if side else 12, 8), 0, 180, 360, 40.0, -1)  # hair
-    cv2.rectangle(img, (cx - half, 32), (cx + half, 118), shirt, -1)
-    if rng.random() < 0.5:  # stripes
-        for y in range(38, 118, 10):
-            cv2.line(img, (cx - half, y), (cx + half, y), 255.0 - shirt, 3)
-    if not side:
-        cv2.rectangle(img, (cx - half - 8, 36), (cx - half - 1, 110), shirt - 20, -1)  # arms
-        cv2.rectangle(img, (cx + half + 1, 36), (cx + half + 8, 110), shirt - 20, -1)
-        cv2.circle(img, (cx - half - 4, 114), 4, 190.0, -1)
-        cv2.circle(img, (cx + half + 4, 114), 4, 190.0, -1)
-    cv2.rectangle(img, (cx - half + 2, 118), (cx - 2, 210), trousers, -1)
-    cv2.rectangle(img, (cx + 2, 118), (cx + half - 2, 210), trousers + 15, -1)
-    cv2.rectangle(img, (cx - half, 210), (cx + half, 223), 25.0, -1)  # shoes
-    img += _grain(rng, (h, w), 4.0, 0.6)
-    return _to_u8(cv2.GaussianBlur(img, (0, 0), 0.6))
-
-
-def cyclist(rng: np.random.Generator, side: bool) -> U8:
-    """A cyclist, side view 224 x 230 texels or front view 80 x 230."""
-    h = 230
-    w = 224 if side else 80
-    bg = float(rng.uniform(100, 150))
-    img = np.full((h, w), bg, np.float32)
-    shirt = float(rng.uniform(30, 230))
-    if side:
-        for cx in (45, 180):
-            cv2.circle(img, (cx, 185), 40, 20.0, 4)
-            cv2.circle(img, (cx, 185), 4, 20.0, -1)
-            for a in range(0, 180, 30):
-                d = 38 * np.array([np.cos(np.radians(a)), np.sin(np.radians(a))])
-                p0 = np.rint((cx, 185) - d).astype(int)
-                p1 = np.rint((cx, 185) + d).astype(int)
-                cv2.line(img, (int(p0[0]), int(p0[1])), (int(p1[0]), int(p1[1])), 70.0, 1)
-        frame = np.array(
-            [[45, 185], [100, 120], [165, 125], [180, 185], [110, 185], [100, 120]], np.int32
-        )
-        cv2.polylines(img, [frame], True, 230.0, 4)
-        cv2.rectangle(img, (85, 40), (130, 120), shirt, -1)  # torso
-        cv2.circle(img, (140, 28), 16, 190.0, -1)  # head
-        cv2.ellipse(img, (140, 20), (18, 12), 0, 180, 360, 60.0, -1)  # helmet
-        cv2.line(img, (125, 55), (165, 110), shirt - 30, 8)  # arm
-        cv2.line(img, (100, 120), (120, 175), 40.0, 9)  # leg
-    else:
-        cv2.rectangle(img, (36, 110), (44, 229), 20.0, -1)  # wheel seen head-on
-        cv2.rectangle(img, (20, 110), (60, 118), 200.0, -1)  # handlebar
-        cv2.rectangle(img, (22, 40), (58, 120), shirt, -1)
-        cv2.circle(img, (40, 26), 15, 190.0, -1)
-        cv2.ellipse(img, (40, 18), (17, 11), 0, 180, 360, 60.0, -1)
-        cv2.rectangle(img, (28, 120), (36, 200), 40.0, -1)
-        cv2.rectangle(img, (44, 120), (52, 200), 40.0, -1)
-    img += _grain(rng, (h, w), 4.0, 0.6)
-    return _to_u8(cv2.GaussianBlur(img, (0, 0), 0.6))
-
-
-def pole(rng: np.random.Generator) -> U8:
-    """Street-light pole, 16 x 256 texels: metal with bands and stickers."""
-    img = np.full((256, 16), float(rng.uniform(60, 110)), np.float32)
-    for y in rng.integers(20, 240, 5):
-        img[int(y) : int(y) + 4] += float(rng.choice([-40.0, 60.0]))
-    img[200:] -= 20
-    img += _grain(rng, (256, 16), 5.0, 0.5)
-    return _to_u8(img)
-
-
-def sign(rng: np.random.Generator) -> U8:
-    """A traffic sign plate, 64 x 64 texels."""
-    img = np.full((64, 64), 230.0, np.float32)
-    cv2.circle(img, (32, 32), 28, 60.0, 7)
-    digit = int(rng.integers(2, 6))  # a digit-like glyph and a zero
-    cv2.rectangle(img, (17, 22), (28, 42), 20.0, 2)
-    cv2.line(img, (17, 32), (17 + 2 * digit, 32), 20.0, 2)
-    cv2.ellipse(img, (41, 32), (6, 10), 0, 0, 360, 20.0, 2)
-    return _to_u8(img)
+    img += grain(rng, (h, w), 5.0, 0.5)
+    return make_texture("kerb", to_u8(img), True, (texel_m, texel_m), min_size=1)

@@ -11,6 +11,7 @@ a frame's truth only when its box projects into the image.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import cv2
 import numpy as np
@@ -126,3 +127,38 @@ def visible_fraction(view: BoxView, ids: NDArray[np.uint16], obj: int) -> float:
         return 0.0
     shown = int(np.count_nonzero((ids[y0:y1, x0:x1] == obj) & mask.view(bool)))
     return min(1.0, shown / area)
+
+
+def boxes_near_image(
+    camera: PinholeCamera,
+    camera_from_world: FloatArray,
+    corners_w: FloatArray,
+    margin_px: float = 50.0,
+) -> NDArray[np.bool_]:
+    """Cheap pre-test for many boxes (N, 8, 3): which may project into the image (a superset)."""
+    Pc = corners_w @ camera_from_world[:3, :3].T + camera_from_world[:3, 3]
+    z = Pc[..., 2]
+    zc = np.maximum(z, 0.3)
+    u = camera.fx * Pc[..., 0] / zc + camera.cx
+    v = camera.fy * Pc[..., 1] / zc + camera.cy
+    m = margin_px
+    out: NDArray[np.bool_] = (
+        (z > 0.3).any(1)
+        & (u.max(1) >= -m)
+        & (u.min(1) <= camera.width + m)
+        & (v.max(1) >= -m)
+        & (v.min(1) <= camera.height + m)
+    )
+    return out
+
+
+def truth_record(
+    view: BoxView, ids: NDArray[np.uint16], obj: int, pos: FloatArray, vel: FloatArray
+) -> dict[str, Any]:
+    """One object's entry in a frame of ``truth.json`` (bbox px, visible, vehicle-frame m, m/s)."""
+    return {
+        "bbox": [round(float(b), 2) for b in view.bbox],
+        "visible": round(visible_fraction(view, ids, obj), 3),
+        "pos_vehicle": [round(float(pos[0]), 4), round(float(pos[1]), 4)],
+        "vel_vehicle": [round(float(vel[0]), 4), round(float(vel[1]), 4)],
+    }

@@ -60,6 +60,9 @@ def one_run(name: str, seed: int, work: Path, config: str | None, plots: bool) -
     except ApplianceError as exc:
         return {"scenario": name, "seed": seed, "error": f"evaluate: {exc}"}
     r["seed"] = seed
+    lead = "-" if r["lead_time_s"] is None else f"{r['lead_time_s']:.2f} s"
+    print(f"  {name}#{seed}: lead {lead}, false level-2 {r['false_level2']}, "
+          f"level-1 onsets {r['level1_onsets']}", flush=True)
     return r
 
 
@@ -165,6 +168,15 @@ def main(argv: list[str]) -> int:
           f" (median lead {_med([v for v in leads if v is not None]) or float('nan'):.2f} s)")
     print(f"false level-2 warnings: {sum(r['false_level2'] for r in ok)} "
           f"(no-collision runs with any: {sum(1 for r in calm if r['false_level2'])}/{len(calm)})")
+    calm_min = sum(r["duration_s"] for r in calm) / 60.0
+    if calm_min > 0:
+        print(f"level-1 onsets in no-collision runs: {sum(r['level1_onsets'] for r in calm)} in "
+              f"{calm_min:.1f} min ({sum(r['level1_onsets'] for r in calm) / calm_min:.2f}/min)")
+    timely = [r for r in ok for o in r["objects"]
+              if o["detection_delay_frames"] is not None and o["detection_delay_frames"] <= 10]
+    movers = [o for r in ok for o in r["objects"]]
+    print(f"movers confirmed within 10 frames of being >= 15 px tall and visible: "
+          f"{len(timely)}/{len(movers)}")
     meeting = sum(1 for r in ok if not any(v is False for v in r["targets"].values()))
     print(f"runs meeting every target: {meeting}/{len(results)}")
     return 0 if all(a["targets"] == "ok" for a in agg) else 1

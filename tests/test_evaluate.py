@@ -190,3 +190,18 @@ def test_collision_object_from_truth_wins_over_geometry(default_config: Config) 
     data["collision_object"] = 1
     assert evaluate(parse_truth(data, "t"), [], [], times, (320, 240),
                     default_config.mount)["colliding_object"] == 1
+
+
+def test_switch_of_track_during_level2_is_not_a_new_warning(tmp_path: Path,
+                                                            default_config: Config) -> None:
+    rec = write_recording(tmp_path / "rec", default_config)
+    run = collision_run(tmp_path / "run")
+    # the ghost's level 2 continues and switches to the mover's track without a drop
+    warnings = [warning(32, 2, 9, [250, 20, 280, 60]), warning(41, 2, 5, mover_box(41)),
+                warning(80, 0, 5, None)]
+    with (run / "warnings.jsonl").open("w") as fh:
+        for w in warnings:
+            fh.write(json.dumps(w) + "\n")
+    r = evaluate_run(rec, run, plot=False)
+    assert r["level2_onsets"] == 1 and r["false_level2"] == 1
+    assert r["lead_time_s"] == pytest.approx(2.5 - 41 / FPS, abs=1e-3)

@@ -99,17 +99,18 @@ def init_decision_state(cfg: Config, camera: PinholeCamera) -> DecisionState:
     )
 
 
-def _touches_border(c: Cluster, camera: PinholeCamera, margin: int, member_weight: float) -> bool:
-    """Left, right or bottom edge of the cluster's box within ``margin`` px plus the particle
-    spacing of the image border (the top does not hide the ground contact).
+def _touches_border(c: Cluster, camera: PinholeCamera, margin: int, member_weight: float,
+                    halo_px: float) -> bool:
+    """Left, right or bottom edge of the cluster's box within ``margin`` px, plus the particle
+    spacing and the halo, of the image border (the top does not hide the ground contact).
 
     The box spans sampled particles, so its edge is only known to about their spacing
     ``sqrt(box area / particles)``: an object cut by the border often has no particle
-    in its last rows.
+    in its last rows; and the box was shrunk by the halo, which the border cut off.
     """
     u0, v0, u1, v1 = c.bbox
     n = max(int(np.count_nonzero(c.weights >= member_weight)), 1)
-    m = margin + math.sqrt(max((u1 - u0) * (v1 - v0), 0.0) / n)
+    m = margin + halo_px + math.sqrt(max((u1 - u0) * (v1 - v0), 0.0) / n)
     return u0 <= m or u1 >= camera.width - m or v1 >= camera.height - m
 
 
@@ -126,7 +127,7 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
     c = track.cluster
     if c is not None and track.confirmed:
         if not _touches_border(c, camera, cfg.ground.border_margin_px,
-                               cfg.clustering.member_weight):
+                               cfg.clustering.member_weight, 0.5 * cfg.flow.window_px):
             u0, _, u1, _ = c.bbox
             contact = ground_contact(camera, (0.5 * (u0 + u1), c.foot_v - 0.5), pose, cfg.ground)
             if contact is not None:

@@ -19,9 +19,10 @@ Definitions (where the issue is silent, what a validation engineer expects):
   warning). A warning is on an object when its box matches the object's truth
   box in that frame, or when its track is attributed to the object and matched
   it within 15 frames (0.5 s at 30 fps) of the warning.
-* **False level-2 warnings:** level-2 onsets (a level-2 event after a lower level,
-  or for a new track) in a no-collision scenario, or, in a collision scenario,
-  not on a moving object.
+* **False level-2 warnings:** level-2 onsets (a level-2 event after a lower
+  level; a change of the track behind a continuing level 2 is not a new warning
+  for the driver) in a no-collision scenario, or, in a collision scenario, not on
+  a moving object.
 * **Level-1 per minute:** onsets from level 0 to level >= 1 per minute of recording.
 * **TTC / distance error:** medians over the frames of the last 3 s before
   ``collision_t`` of |estimate - truth| / truth for the track of the colliding
@@ -81,13 +82,13 @@ def clip_box(b: NDArray[np.float64], width: int, height: int) -> NDArray[np.floa
 def _onsets(warnings: list[WarningRow]) -> tuple[list[WarningRow], list[WarningRow]]:
     """(level-2 onsets, level-1-or-higher onsets from 0), in time order."""
     l2, l1 = [], []
-    prev_level, prev_track = 0, None
+    prev_level = 0
     for w in sorted(warnings, key=lambda w: (w.t, w.frame)):
-        if w.level == 2 and (prev_level < 2 or w.track != prev_track):
+        if w.level == 2 and prev_level < 2:
             l2.append(w)
         if w.level >= 1 and prev_level == 0:
             l1.append(w)
-        prev_level, prev_track = w.level, w.track
+        prev_level = w.level
     return l2, l1
 
 
@@ -172,7 +173,9 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
         false_l2 = list(l2_onsets)
     first_l2_t = None
     if colliding is not None and ct is not None:
-        hits = [w.t for w in l2_onsets if w.t <= ct + 1e-6 and on_object(w, colliding)]
+        # every level-2 event counts here, also a switch of a continuing level 2 to its track
+        hits = [w.t for w in sorted(warnings, key=lambda w: w.t)
+                if w.level == 2 and w.t <= ct + 1e-6 and on_object(w, colliding)]
         first_l2_t = hits[0] if hits else None
     lead = None if first_l2_t is None or ct is None else ct - first_l2_t
 

@@ -214,6 +214,7 @@ class WarningConfig:
     min_speed_m_s: float = _p(0.0, 50.0)
     moving_sigmas: float = _p(0.0, 100.0)
     moving_min_frames: int = _p(1, 1000)
+    min_probability: float = _p(0.0, 1.0)
 
 
 @dataclass(frozen=True)

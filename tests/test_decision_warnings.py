@@ -131,3 +131,18 @@ def test_persistence_looks_ahead_by_its_window(default_config: Config) -> None:
         state, ev, _ = warning_step(state, (threat(1, ttc),), k / FPS, k, cfg)
         late += [ttc for e in ev if e.level == 2]
     assert late[0] == pytest.approx(issued[0][1] - 2 / FPS)
+
+
+def test_weak_or_static_tracks_raise_no_level(default_config: Config) -> None:
+    from dataclasses import replace
+
+    cfg = default_config.warning  # min_probability 0.75
+    weak = TrackThreat(replace(threat(1, 1.0).report, probability=0.5), True, True)
+    levels, events = run(cfg, [(weak,)] * 10)
+    assert events == [] and max(levels) == 0
+    still = TrackThreat(threat(1, 1.0).report, True, True, moving=False)
+    levels, events = run(cfg, [(still,)] * 10)
+    assert events == [] and max(levels) == 0
+    # once raised, a warning is held for a track that stops (a pedestrian standing in the path)
+    levels, events = run(cfg, [(threat(1, 1.0),)] * 4 + [(still,)] * 10)
+    assert [e.level for e in events] == [2] and levels[-1] == 2

@@ -81,7 +81,7 @@ class ImageTrack:
     uid: birth serial (smaller = older); id: public id once confirmed, else None.
     age: steps since birth; misses: consecutive steps without update.
     cluster: the region that updated it this step (None when it coasted).
-    probability: eq. 20 of the last region that updated it.
+    probability: eq. 20 of the regions that updated it, smoothed like the size.
     """
 
     uid: int
@@ -155,8 +155,9 @@ def _update(track: ImageTrack, cluster: Cluster, model: ImageModel, alpha: float
     u0, v0, u1, v1 = cluster.bbox
     w = (1.0 - alpha) * track.size[0] + alpha * (u1 - u0)
     h = (1.0 - alpha) * track.size[1] + alpha * (v1 - v0)
+    q = (1.0 - alpha) * track.probability + alpha * cluster.mean_probability
     return replace(track, x=np.stack(xs), P=np.stack(Ps), size=(w, h), misses=0, cluster=cluster,
-                   probability=cluster.mean_probability)
+                   probability=q)
 
 
 def gather_fragments(clusters: tuple[Cluster, ...], tracks: list[ImageTrack]

@@ -7,7 +7,10 @@ predicted path meets the ego corridor and with what TTC. From that:
   (``corridor_margin_m``) and TTC <= ``ttc_warning_s``; level 1 with
   ``ttc_caution_s``; only for tracks that have shown independent motion over
   ground (``min_speed_m_s``, ``moving_sigmas``): the appliance warns of moving
-  objects, and a false detection on the static scene converges to standing still.
+  objects, and a false detection on the static scene converges to standing still;
+  and only while the track's regions carry a mean probability of independent
+  motion (eq. 20, smoothed) of at least ``min_probability``: false detections on
+  road texture are weak and patchy, real movers are not.
 * **Minimum persistence.** A track raises a level only after indicating it in
   ``min_persistence_frames`` consecutive frames: no single-frame warnings. The
   indication looks ahead by the window's length (threshold + (frames - 1) * frame
@@ -67,13 +70,15 @@ class WarningState:
     last_seen: float = float("-inf")
 
 
-def _indicated(th: TrackThreat, threshold: float, wide: bool, hysteresis: float) -> bool:
+def _indicated(th: TrackThreat, threshold: float, wide: bool, hysteresis: float,
+               min_probability: float = 0.0) -> bool:
     ttc = th.ttc
     if ttc is None:
         return False
     if wide:
         return th.on_course_wide and ttc <= threshold + hysteresis
-    return th.moving and th.on_course and ttc <= threshold
+    return th.moving and th.on_course and ttc <= threshold and \
+        th.report.probability >= min_probability
 
 
 def warning_step(state: WarningState, threats: tuple[TrackThreat, ...], t: float, frame: int,
@@ -92,8 +97,10 @@ def warning_step(state: WarningState, threats: tuple[TrackThreat, ...], t: float
     for th in threats:
         tid = th.report.id
         old = state.streaks.get(tid, (0, 0))
-        s1 = old[0] + 1 if _indicated(th, thresholds[1] + lookahead, False, 0.0) else 0
-        s2 = old[1] + 1 if _indicated(th, thresholds[2] + lookahead, False, 0.0) else 0
+        s1 = old[0] + 1 if _indicated(th, thresholds[1] + lookahead, False, 0.0,
+                                      cfg.min_probability) else 0
+        s2 = old[1] + 1 if _indicated(th, thresholds[2] + lookahead, False, 0.0,
+                                      cfg.min_probability) else 0
         streaks[tid] = (s1, s2)
         level = 0
         for k, streak in ((2, s2), (1, s1)):

@@ -14,16 +14,25 @@ both buses as separate processes. Checked:
 - the CollisionWarning changes on the wire are the run's own ``warnings.jsonl`` changes
   (level and track), so the HMI path loses and invents nothing;
 - against a plain ``replay`` (no ``--realtime``) of the same recording with the same
-  configuration: the same highest level, and the first caution-or-higher and the first
-  level-2 frames each within :data:`FRAME_TOLERANCE` frames.
+  configuration: both reach level 2, both are at the same level at the collision (the
+  last frame), and the warning active at the collision began within
+  :data:`ONSET_TOLERANCE_FRAMES` frames of the plain replay's.
 
 Why a tolerance and not equality: the real-time run stamps the vehicle CAN when the
-reader receives it (jitter of a few ms on the recording clock), the plain replay uses
-the recorded stamps, and the detection's particle filter amplifies such differences
-into slightly different tracks; a level is issued only after ``min_persistence_frames``
-(3) consecutive indications, so a flip in one frame moves the issue by up to that many
-frames. The level *sequence* is not compared as a whole because a caution can flicker
-for a frame before a warning in one run and not the other.
+reader receives it (a few ms of jitter on the recording clock) where the plain replay
+uses the recorded stamps, and the detection's particle filter turns such differences
+into different tracks. How much that moves the warning was measured on this drive
+(2026-11-24, code of that day): the plain replay alone, changing nothing but
+``[runtime] seed`` (0-11), began its final warning anywhere from frame 135 to 159 (and
+two seeds raised an early caution near frame 73 that cleared again); twelve real-time
+runs that processed at least 178 of the 181 frames began it at frames 134-166 against
+the plain replay's 135. So the onset is only known to about a second, whichever path
+runs the pipeline: the tolerance is that measured spread (31 frames) plus the
+persistence window (3 frames), rounded up to 1.2 s. It catches a real-time path that
+never warns, stops warning before the impact, or is off by seconds (a time base error);
+it cannot see sub-second timing errors, which the pipeline's own randomness hides. The
+level *sequences* are not compared as a whole for the same reason (early cautions that
+clear again come and go with the seed).
 
 Precondition: the real-time run must have kept up (at most :data:`MAX_DROPPED_FRACTION`
 of the frames dropped). A run that drops frames feeds the pipeline different images, and
@@ -57,7 +66,7 @@ pytestmark = [pytest.mark.vcan, pytest.mark.realtime]
 SCENARIO = "pedestrian_crossing_nearside"   # a collision scenario with warnings
 SEED = 1
 DURATION_S = 6.0
-FRAME_TOLERANCE = 3            # frames (0.1 s at 30 fps): min_persistence_frames, see above
+ONSET_TOLERANCE_FRAMES = 36    # frames (1.2 s at 30 fps): measured spread + persistence, see above
 MAX_DROPPED_FRACTION = 0.05    # of the frames read, dropped by the real-time run
 COMMAND_TIMEOUT_S = 600.0      # s, any one CLI command (the slow VM included)
 CAPTURE_TIMEOUT_S = 10.0       # s, for candump to print what was sent
@@ -134,8 +143,16 @@ def collapse(keys: list[tuple[int, int]]) -> list[tuple[int, int]]:
     return [k for k, _ in groupby(keys)]
 
 
-def first_frame(changes: list[LevelChange], min_level: int) -> int | None:
-    return next((c.frame for c in changes if c.level >= min_level), None)
+def final_onset(changes: list[LevelChange]) -> int | None:
+    """The frame where the warning still active at the end began (None: cleared at the end)."""
+    onset = None
+    for c in changes:
+        onset = None if c.level == 0 else (c.frame if onset is None else onset)
+    return onset
+
+
+def final_level(changes: list[LevelChange]) -> int:
+    return changes[-1].level if changes else 0
 
 
 def id_data(msgs: list[can.Message]) -> list[tuple[int, bytes]]:
@@ -202,10 +219,11 @@ def test_realtime_replay_on_vcan_warns_like_a_plain_replay(
 
     # the real-time decisions against the plain replay's
     plain = read_changes(drive.plain)
+    both = f"plain {plain}\nrealtime {realtime}"
     assert max((c.level for c in plain), default=0) == 2, f"the plain replay issued no warning: {plain}"
-    assert max(c.level for c in realtime) == 2, f"plain {plain}\nrealtime {realtime}"
-    for min_level in (1, 2):
-        p, r = first_frame(plain, min_level), first_frame(realtime, min_level)
-        assert p is not None and r is not None and abs(p - r) <= FRAME_TOLERANCE, (
-            f"first level >= {min_level}: plain frame {p}, real time frame {r}\n"
-            f"plain {plain}\nrealtime {realtime}")
+    assert max((c.level for c in realtime), default=0) == 2, both
+    assert final_level(realtime) == final_level(plain), both
+    p, r = final_onset(plain), final_onset(realtime)
+    assert p is not None and r is not None and abs(p - r) <= ONSET_TOLERANCE_FRAMES, (
+        f"onset of the warning active at the collision: plain frame {p}, real time frame {r}\n"
+        + both)

@@ -60,7 +60,7 @@ from drivers.vehicle_signals import FrameDecodeError, SignalKind
 
 MODES = ("direction", "magnitude", "combined")
 DEFAULT_SCENARIOS: tuple[str, ...] = ()
-MIN_BOX_PX, MIN_VISIBLE, HIGH_WEIGHT, CELL_PX = 20.0, 0.5, 0.5, 32
+MIN_BOX_PX, MIN_VISIBLE, MIN_SPEED_M_S, HIGH_WEIGHT, CELL_PX = 20.0, 0.5, 0.3, 0.5, 32
 
 
 @dataclass
@@ -77,6 +77,7 @@ class RunLog:
     ego: list[EgoMotion] = field(default_factory=list)
     particles: list[ParticleSet] = field(default_factory=list)
     frames: list[int] = field(default_factory=list)
+    sensors: list[SensorSample] = field(default_factory=list)
     ms: dict[str, list[float]] = field(default_factory=dict)
     frame_ms: dict[str, float] = field(default_factory=dict)
     refine_args: list[tuple[Any, ...]] = field(default_factory=list)
@@ -164,6 +165,7 @@ def run(case: Case, mode: str, frames: int, seed: int, timing: bool) -> RunLog:
                 log.ego.append(ego)
                 log.particles.append(particles)
                 log.frames.append(frame.index)
+                log.sensors.append(sensors)
                 if timing:
                     log.ms.setdefault("perceive", []).append((t1 - t0) * 1e3)
                     for key, v in log.frame_ms.items():
@@ -241,23 +243,39 @@ def motion_errors(case: Case, log: RunLog) -> dict[str, list[float]]:
     return out
 
 
-def boxes_at(truth: dict[str, Any], k: int) -> tuple[list[list[float]], bool]:
-    """Boxes of the moving objects in frame k, and whether one qualifies (>= 20 px tall, >= 50 % visible)."""
+def world_speed(f: dict[str, Any], sensors: SensorSample | None) -> float:
+    """Speed (m/s) of a truth object over the ground, from its velocity relative to the ego vehicle.
+
+    A static point at p (vehicle frame) moves at ``(-v + w p_y, -w p_x)`` relative to the vehicle.
+    """
+    if sensors is None or "vel_vehicle" not in f or "pos_vehicle" not in f:
+        return math.inf
+    (px, py), (vx, vy) = f["pos_vehicle"], f["vel_vehicle"]
+    v, w = sensors.speed_m_s, sensors.yaw_rate_rad_s
+    return math.hypot(vx - (-v + w * py), vy - (-w * px))
+
+
+def boxes_at(truth: dict[str, Any], k: int, sensors: SensorSample | None = None
+             ) -> tuple[list[list[float]], bool]:
+    """Boxes of the moving objects in frame k, and whether one qualifies: >= 20 px tall,
+    >= 50 % visible and actually moving over the ground in that frame (> 0.3 m/s; a
+    pedestrian who stopped at the kerb is a "moving" object in truth.json but static then)."""
     boxes, qualifies = [], False
     for obj in truth.get("objects", []):
         f = obj.get("frames", {}).get(str(k))
         if not obj.get("moving") or f is None:
             continue
         boxes.append(f["bbox"])
-        qualifies |= (f["bbox"][3] - f["bbox"][1] >= MIN_BOX_PX) and f.get("visible", 1.0) >= MIN_VISIBLE
+        qualifies |= ((f["bbox"][3] - f["bbox"][1] >= MIN_BOX_PX) and f.get("visible", 1.0) >= MIN_VISIBLE
+                      and world_speed(f, sensors) > MIN_SPEED_M_S)
     return boxes, qualifies
 
 
 def detection_share(case: Case, log: RunLog) -> tuple[int, int, int]:
     """Over qualifying frames: high-weight particles inside a mover's box, all high-weight, frames."""
     inside = total = frames = 0
-    for k, ps in zip(log.frames, log.particles):
-        boxes, qualifies = boxes_at(case.truth, k)
+    for k, ps, sensors in zip(log.frames, log.particles, log.sensors):
+        boxes, qualifies = boxes_at(case.truth, k, sensors)
         if not qualifies:
             continue
         frames += 1

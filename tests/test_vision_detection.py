@@ -215,3 +215,27 @@ def test_particles_concentrate_on_a_moving_blob_within_a_few_frames(
     assert blob_share < 0.02
     assert final_share > 0.5, (mode, final_share)
     assert shares[-1] > 0.8                  # high-weight particles are on the blob
+
+
+def test_no_evidence_where_the_road_flow_is_beyond_the_reach_of_lk(default_config: Config) -> None:
+    cfg = default_config.detection
+    uv = np.array([[600.0, 470.0], [420.0, 300.0]])      # bottom corner, middle distance
+    x_prev = road_correspondence(uv, 0.6)
+    road_flow = np.linalg.norm(uv - x_prev, axis=1)
+    assert road_flow[0] > cfg.max_flow_px > road_flow[1]
+    x_prev_stuck = uv - 0.1 * (uv - x_prev)               # LK lost the big flow: 10 % of it
+    cues = motion_cues(x_prev_stuck, uv, forward_motion(0.6), ROAD, cfg)
+    assert cues.direction is not None and cues.magnitude is not None
+    assert cues.magnitude[0] == 0.0 and cues.direction[0] == 0.0
+    assert cues.magnitude[1] > 0.5                         # the same deficit in reach is evidence
+
+
+def test_particles_leaving_the_image_are_redrawn_not_piled_at_the_border(default_config: Config) -> None:
+    cfg = default_config.with_overrides({"detection": {"importance_fraction": 0.0}}).detection
+    n = cfg.particles
+    x = np.tile([[639.0, 479.0]], (n, 1))                  # all in the corner, high weight
+    out, _ = next_particles(x, np.ones(n), np.ones(n, bool), np.ones(n), ImportanceDensity(640, 480),
+                            cfg, np.random.default_rng(0))
+    assert np.all((out >= 0.0) & (out <= [639.0, 479.0]))
+    near_corner = np.hypot(out[:, 0] - 639.0, out[:, 1] - 479.0) < 10.0
+    assert 0.1 < near_corner.mean() < 0.5                  # about the quarter that stayed inside

@@ -126,11 +126,14 @@ def next_particles(x_cur: NDArray[np.floating], likelihood: NDArray[np.floating]
     if n_res > 0:
         idx = systematic_resample(w / total, n_res, float(rng.random()))
         moved = np.asarray(x_cur, dtype=np.float64)[idx] + rng.normal(0.0, cfg.diffusion_px, (n_res, 2))
-        moved[:, 0] = np.clip(moved[:, 0], 0.0, g.width - 1.0)
-        moved[:, 1] = np.clip(moved[:, 1], 0.0, g.height - 1.0)
         out[:n_res] = moved
-    if n_imp > 0:
-        fresh = g.sample(rng, n_imp)
-        out[n_res:] = fresh
-        corr[n_res:] = g.correction(fresh)
+    # particles diffused out of the image are drawn from g instead (clipping them to the
+    # border would pile them up in the corners, where the flow leaves the image)
+    outside = np.zeros(n, dtype=bool)
+    outside[:n_res] = ((out[:n_res, 0] < 0.0) | (out[:n_res, 0] > g.width - 1.0)
+                       | (out[:n_res, 1] < 0.0) | (out[:n_res, 1] > g.height - 1.0))
+    outside[n_res:] = True
+    fresh = g.sample(rng, int(outside.sum()))
+    out[outside] = fresh
+    corr[outside] = g.correction(fresh)
     return out, corr

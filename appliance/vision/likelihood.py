@@ -27,6 +27,8 @@ Degenerate cases, handled explicitly:
   sigma_l and an ever weaker direction cue instead of a NaN;
 * above the horizon (no road behind the pixel) or without a metric translation
   (CAN missing) the magnitude cue is 0;
+* where the road's static flow (a lower bound of any static flow there) is longer
+  than ``max_flow_px``, pyramidal LK cannot have measured it: both cues are 0;
 * at a standstill only the standstill cue is used, whatever the mode.
 """
 
@@ -128,31 +130,46 @@ def direction_cue(flow_t: FloatArray, static_dir: FloatArray, d_e: FloatArray,
     return np.where(defined & np.isfinite(p), p, 0.0)
 
 
-def magnitude_cue(flow_t: FloatArray, x_cur: FloatArray, motion: CameraMotion, road: RoadPlane,
-                  cfg: DetectionConfig) -> FloatArray:
-    """Flow-length cue: how much shorter than the road's static flow the measured flow is.
+def road_static_flow(x_cur: FloatArray, motion: CameraMotion, road: RoadPlane | None) -> FloatArray:
+    """Translational flow (N, 2) px of a road point seen at ``x_cur``: the shortest static flow there.
 
-    A static point seen at ``x_cur`` at depth Z has the translational flow
-    ``f_s = ((K t)_xy - t_z x_cur) / (Z - t_z)`` (t metric). With Z the road depth it
-    is the shortest static flow there. Deficit ``delta = |f_s| - flow_t . f_s/|f_s|``;
-    its std ``hypot(magnitude_sigma |f_s|, sigma_p)``; cue ``1 - exp(-delta+^2 / 2 std^2)``.
+    A static point seen at ``x_cur`` at depth Z has ``f_s = ((K t)_xy - t_z x_cur) / (Z - t_z)``
+    (t metric). Below the horizon nothing static is farther than the road, so with Z the
+    road depth this is a lower bound on the length of any static flow at that pixel.
+    NaN above the horizon, without a road model or without a metric translation.
     """
     n = x_cur.shape[0]
-    if motion.t_m is None:
-        return np.zeros(n)
+    if motion.t_m is None or road is None:
+        return np.full((n, 2), np.nan)
     K, t = motion.K, motion.t_m
     Z = road_depth(road, K, x_cur)
     Kt = K @ t
     with np.errstate(divide="ignore", invalid="ignore"):
         depth_prev = Z - t[2]
         f_s = (Kt[:2][None, :] - t[2] * x_cur) / depth_prev[:, None]
+    return np.where((depth_prev > 0.0)[:, None], f_s, np.nan)
+
+
+def magnitude_cue_from_static(flow_t: FloatArray, f_s: FloatArray, cfg: DetectionConfig) -> FloatArray:
+    """Cue from the deficit ``delta = |f_s| - flow_t . f_s / |f_s|`` (px) of the measured flow.
+
+    Its std is ``hypot(magnitude_sigma |f_s|, sigma_p)``; cue ``1 - exp(-delta+^2 / 2 std^2)``;
+    0 where ``f_s`` is NaN (no road behind the pixel, no metric translation).
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
         length = np.hypot(f_s[:, 0], f_s[:, 1])
         along = (flow_t[:, 0] * f_s[:, 0] + flow_t[:, 1] * f_s[:, 1]) / length
         deficit = np.maximum(length - along, 0.0)
         std = np.hypot(cfg.magnitude_sigma * length, cfg.sigma_p_px)
         p = 1.0 - np.exp(-deficit**2 / (2.0 * std**2))
-    ok = np.isfinite(p) & (depth_prev > 0.0)
-    return np.where(ok, p, 0.0)
+    return np.where(np.isfinite(p), p, 0.0)
+
+
+def magnitude_cue(flow_t: FloatArray, x_cur: FloatArray, motion: CameraMotion, road: RoadPlane,
+                  cfg: DetectionConfig) -> FloatArray:
+    """Flow-length cue at measurements ending at ``x_cur`` (N, 2): how much shorter than the
+    road's static flow (:func:`road_static_flow`) the measured translational flow is."""
+    return magnitude_cue_from_static(flow_t, road_static_flow(x_cur, motion, road), cfg)
 
 
 def standstill_cue(flow_t: FloatArray, cfg: DetectionConfig) -> FloatArray:
@@ -178,8 +195,14 @@ def motion_cues(x_prev: NDArray[np.floating], x_cur: NDArray[np.floating], motio
     else:
         d_e = np.full(len(p), np.inf)
     direction = direction_cue(flow_t, static_dir, d_e, cfg)
-    magnitude = (magnitude_cue(flow_t, x_cur, motion, road, cfg) if road is not None
-                 else np.zeros(len(p)))
+    f_s = road_static_flow(x_cur, motion, road)
+    magnitude = magnitude_cue_from_static(flow_t, f_s, cfg)
+    # where even the shortest static flow is beyond the reach of pyramidal LK, a measured
+    # flow says nothing (typically the bottom of the image at speed): both cues are 0
+    with np.errstate(invalid="ignore"):
+        unreachable = np.hypot(f_s[:, 0], f_s[:, 1]) > cfg.max_flow_px
+    direction = np.where(unreachable, 0.0, direction)
+    magnitude = np.where(unreachable, 0.0, magnitude)
     return Cues(direction, magnitude, None)
 
 

@@ -25,8 +25,8 @@ into different tracks. How much that moves the warning was measured on this driv
 (2026-11-24, code of that day): the plain replay alone, changing nothing but
 ``[runtime] seed`` (0-11), began its final warning anywhere from frame 135 to 159 (and
 two seeds raised an early caution near frame 73 that cleared again); twelve real-time
-runs that processed at least 178 of the 181 frames began it at frames 134-166 against
-the plain replay's 135. So the onset is only known to about a second, whichever path
+runs on the host (python-can virtual buses, the same drivers and threads) that processed
+at least 178 of the 181 frames began it at frames 134-166 against the plain replay's 135. So the onset is only known to about a second, whichever path
 runs the pipeline: the tolerance is that measured spread (31 frames) plus the
 persistence window (3 frames), rounded up to 1.2 s. It catches a real-time path that
 never warns, stops warning before the impact, or is off by seconds (a time base error);

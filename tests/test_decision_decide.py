@@ -131,7 +131,7 @@ def test_collision_course_warns_early_with_accurate_ttc(default_config: Config) 
         if tr.distance_m is not None:
             d_err.append(abs(tr.distance_m - d_true) / d_true)
     assert len(ttc_err) > 50 and np.median(ttc_err) < 0.1
-    assert len(d_err) > 50 and np.median(d_err) < 0.1
+    assert len(d_err) > 50 and np.median(d_err) < 0.15  # the target
     # one track with one stable id, levels only go up
     ids = {tr.id for _, o in res for tr in o.tracks}
     assert ids == {1}

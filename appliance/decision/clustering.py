@@ -171,7 +171,11 @@ def find_clusters(prob: NDArray[np.float32], scale: int, particles: ParticleSet,
         if np.count_nonzero(moving) >= 2:
             extent = _box_of(mpos[moving])
             bbox = shrink(extent, halo_px)
-            foot = extent[3] - halo_px  # the halo below the feet always comes off
+            # the halo below the feet always comes off; from 20 particles on, the 99th
+            # percentile (the sparse tail of road particles under an object is not the object)
+            vs = mpos[moving, 1]
+            low = float(np.percentile(vs, 99.0)) + 1.0 if len(vs) >= 20 else extent[3]
+            foot = low - halo_px
         else:
             bbox = region
             foot = region[3]

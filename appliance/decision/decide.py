@@ -26,7 +26,7 @@ from appliance.config import Config
 from appliance.decision.clustering import Cluster, find_clusters
 from appliance.decision.ground_state import (
     CameraPose, GroundTrack, bearing, camera_pose, ground_absorb, ground_contact, ground_predict,
-    update_body_pitch,
+    update_body_pitch, velocity_prior,
 )
 from appliance.decision.probability_map import empty_map, spatio_temporal_filter
 from appliance.decision.scale_ttc import (
@@ -125,13 +125,19 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
         s = scale_predict(s, dt, cfg.ground.scale_process_std)
     fresh = False
     c = track.cluster
+    hist = (cues.bearings if cues else ()) + ((t, bearing(camera, track.position, pose)),)
+    hist = hist[-BEARING_HISTORY:]
     if c is not None and track.confirmed:
         if not _touches_border(c, camera, cfg.ground.border_margin_px,
                                cfg.clustering.member_weight, 0.5 * cfg.flow.window_px):
             u0, _, u1, _ = c.bbox
             contact = ground_contact(camera, (0.5 * (u0 + u1), c.foot_v - 0.5), pose, cfg.ground)
             if contact is not None:
-                g = ground_absorb(g, contact, t, cfg.ground)
+                rate = _bearing_rate(hist)
+                prior = None if rate is None else velocity_prior(
+                    contact.z, rate, _finite(sensors.speed_m_s), _finite(sensors.yaw_rate_rad_s),
+                    (cfg.mount.x_m, cfg.mount.y_m), cfg.ground)
+                g = ground_absorb(g, contact, t, cfg.ground, prior)
                 fresh = g.t_update == t
         moving = c.weights >= cfg.clustering.member_weight
         m = measure_expansion(c.positions[moving], c.flows[moving], c.weights[moving],
@@ -150,9 +156,8 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
             depth *= math.exp(-s.k * dt)
         if t - depth_t > DEPTH_MEMORY_S:
             depth = None
-    hist = (cues.bearings if cues else ()) + ((t, bearing(camera, track.position, pose)),)
     moved = moves_over_ground(g, cfg) if g is not None else (cues.moved if cues else False)
-    return TrackCues(ground=g, ground_fresh=fresh, scale=s, bearings=hist[-BEARING_HISTORY:],
+    return TrackCues(ground=g, ground_fresh=fresh, scale=s, bearings=hist,
                      depth=depth, depth_t=depth_t, moved=moved)
 
 
@@ -174,6 +179,10 @@ def moves_over_ground(g: GroundTrack, cfg: Config) -> bool:
     except np.linalg.LinAlgError:
         return False
     return m2 >= cfg.warning.moving_sigmas ** 2
+
+
+def _finite(v: float) -> float:
+    return v if math.isfinite(v) else 0.0
 
 
 def _bearing_rate(hist: tuple[tuple[float, float], ...]) -> float | None:

@@ -163,11 +163,44 @@ class GroundTrack:
 H_POSITION: FloatArray = np.hstack([np.eye(2), np.zeros((2, 2))])
 
 
-def ground_init(contact: GroundContact, t: float, cfg: GroundConfig) -> GroundTrack:
+def ground_init(contact: GroundContact, t: float, cfg: GroundConfig,
+                prior: tuple[FloatArray, FloatArray] | None = None) -> GroundTrack:
+    """A new 3-D state at ``contact``; velocity from ``prior`` (mean (2,), covariance
+    (2, 2), m/s over ground) or 0 +- ``initial_velocity_std_m_s``."""
     P = np.zeros((4, 4))
     P[:2, :2] = contact.R
+    v = np.zeros(2)
     P[2:, 2:] = np.eye(2) * cfg.initial_velocity_std_m_s ** 2
-    return GroundTrack(x=np.concatenate([contact.z, [0.0, 0.0]]), P=P, t_update=t, updates=1)
+    if prior is not None and np.all(np.isfinite(prior[0])) and np.all(np.isfinite(prior[1])):
+        v, P[2:, 2:] = np.asarray(prior[0], float), np.asarray(prior[1], float)
+    return GroundTrack(x=np.concatenate([contact.z, v]), P=P, t_update=t, updates=1)
+
+
+def velocity_prior(z: FloatArray, bearing_rate: float, speed: float, yaw_rate: float,
+                   camera_xy: tuple[float, float], cfg: GroundConfig,
+                   bearing_rate_std: float = 0.01) -> tuple[FloatArray, FloatArray]:
+    """Velocity over ground (mean, covariance) of an object at ``z`` (m, vehicle frame) whose
+    bearing from the camera turns at ``bearing_rate`` (rad/s, vehicle frame).
+
+    The bearing rate fixes the relative velocity across the line of sight (r times the
+    rate, precise: it comes from the tracked flow); the part a static point would have
+    (ego speed and yaw) is removed. Along the line of sight nothing is known yet: 0 over
+    ground with ``initial_velocity_std_m_s``. A crossing car starts with most of its
+    speed instead of 0, so its path is right from the first frames.
+    """
+    d = np.asarray(z, float) - np.asarray(camera_xy, float)
+    r = float(np.hypot(d[0], d[1]))
+    if r < 1e-3:
+        return np.zeros(2), np.eye(2) * cfg.initial_velocity_std_m_s ** 2
+    radial = d / r
+    tangent = np.array([-radial[1], radial[0]])
+    static_rel = np.array([-speed + yaw_rate * z[1], -yaw_rate * z[0]])
+    v_t = r * bearing_rate - float(static_rel @ tangent)
+    mean = v_t * tangent
+    sd_t = max(r * bearing_rate_std, 0.3)
+    cov = (np.outer(tangent, tangent) * sd_t ** 2
+           + np.outer(radial, radial) * cfg.initial_velocity_std_m_s ** 2)
+    return mean, cov
 
 
 def ego_step(speed: float, yaw_rate: float, dt: float) -> tuple[FloatArray, FloatArray]:
@@ -220,16 +253,16 @@ def innovation_sigmas(g: GroundTrack, contact: GroundContact) -> float:
     return float(math.sqrt(max(float(y @ np.linalg.solve(S, y)), 0.0)))
 
 
-def ground_absorb(g: GroundTrack | None, contact: GroundContact, t: float, cfg: GroundConfig
-                  ) -> GroundTrack:
+def ground_absorb(g: GroundTrack | None, contact: GroundContact, t: float, cfg: GroundConfig,
+                  prior: tuple[FloatArray, FloatArray] | None = None) -> GroundTrack:
     """Start, update or (outlier) skip: a contact further than ``gate_sigmas`` from the
     prediction is skipped once the state has 3 contacts; 5 outliers in a row restart it
     (the object was lost and found elsewhere, or the state went wrong)."""
     if g is None:
-        return ground_init(contact, t, cfg)
+        return ground_init(contact, t, cfg, prior)
     if g.updates >= 3 and innovation_sigmas(g, contact) > cfg.gate_sigmas:
         if g.rejected + 1 >= 5:
-            return ground_init(contact, t, cfg)
+            return ground_init(contact, t, cfg, prior)
         return GroundTrack(x=g.x, P=g.P, t_update=g.t_update, updates=g.updates,
                            rejected=g.rejected + 1)
     return ground_update(g, contact, t)

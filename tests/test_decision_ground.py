@@ -256,3 +256,27 @@ def test_fading_memory_recovers_from_a_wrong_start(default_config: Config) -> No
         return abs(float(g.velocity[0]))  # truth: 0 m/s over ground
 
     assert run(1.0) < 0.8 * run(0.0)
+
+
+def test_velocity_prior_from_the_bearing_rate(default_config: Config) -> None:
+    """A car crossing at 8 m/s, 30 m ahead: its speed across the line of sight is known from
+    the first frames (bearing rate), along it nothing is."""
+    from appliance.decision.ground_state import velocity_prior
+
+    cfg = default_config.ground
+    z, v_og, speed = np.array([30.0, 5.0]), np.array([0.0, -8.0]), 10.0
+    d = z - [1.9, 0.0]
+    rel = v_og - [speed, 0.0]
+    rate = (d[0] * rel[1] - d[1] * rel[0]) / (d @ d)
+    mean, cov = velocity_prior(z, rate, speed, 0.0, (1.9, 0.0), cfg)
+    b = math.atan2(d[1], d[0])
+    tangent, radial = np.array([-math.sin(b), math.cos(b)]), np.array([math.cos(b), math.sin(b)])
+    assert mean @ tangent == pytest.approx(v_og @ tangent, abs=1e-6)
+    assert mean @ radial == pytest.approx(0.0, abs=1e-9)
+    assert math.sqrt(radial @ cov @ radial) == pytest.approx(cfg.initial_velocity_std_m_s)
+    assert math.sqrt(tangent @ cov @ tangent) < 1.0
+    # a static point: its bearing turns only because the car moves; prior = standing still
+    rel_static = -np.array([speed, 0.0])
+    rate0 = (d[0] * rel_static[1] - d[1] * rel_static[0]) / (d @ d)
+    mean0, _ = velocity_prior(z, rate0, speed, 0.0, (1.9, 0.0), cfg)
+    np.testing.assert_allclose(mean0, 0.0, atol=1e-9)

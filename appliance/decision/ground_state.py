@@ -7,6 +7,14 @@ filter estimates the object's position and its velocity *over ground* in the
 current vehicle frame, with the ego motion from CAN (speed, yaw rate) removed in
 the prediction step.
 
+Robustness, where real particle clouds need it: a contact further than
+``gate_sigmas`` from the prediction is skipped (a stray particle row), five in a
+row restart the state; the filter has a fading memory (``memory_s``, filterpy's
+``alpha``) so a state started on a wrong association recovers; a new state takes
+its velocity across the line of sight from the track's bearing rate
+(:func:`velocity_prior`) instead of assuming 0, so a crossing car has the right
+path from its first frames.
+
 Refined pitch: the body pitch b (rad, nose down positive) that CAN cannot see
 (road bumps) is the accumulated difference between the refined and the prior
 inter-frame rotations, mapped from camera axes to the vehicle's y axis; it decays

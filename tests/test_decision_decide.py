@@ -199,6 +199,8 @@ def test_box_touching_the_border_falls_back_to_the_scale_cue(default_config: Con
     s, o = res[-1]
     tr = o.tracks[0]
     assert tr.bbox[3] >= CAM.height - 8  # cut off by the image border (less the halo)
+    assert all(0 <= r.bbox[0] <= r.bbox[2] <= CAM.width and 0 <= r.bbox[1] <= r.bbox[3]
+               <= CAM.height for _, o in res for r in o.tracks)  # boxes stay in the image
     assert tr.distance_m is None  # ground contact unknown: say so
     true_ttc = start / walk - s.t
     assert tr.ttc_s is not None and tr.ttc_s == pytest.approx(true_ttc, abs=0.25)

@@ -181,6 +181,15 @@ def moves_over_ground(g: GroundTrack, cfg: Config) -> bool:
     return m2 >= cfg.warning.moving_sigmas ** 2
 
 
+def _clip_box(box: tuple[float, float, float, float], camera: PinholeCamera
+              ) -> tuple[float, float, float, float]:
+    """The track box inside the image, rounded to 0.1 px (a coasting track may drift out)."""
+    u0, v0, u1, v1 = box
+    w, h = float(camera.width), float(camera.height)
+    return (round(min(max(u0, 0.0), w), 1), round(min(max(v0, 0.0), h), 1),
+            round(min(max(u1, 0.0), w), 1), round(min(max(v1, 0.0), h), 1))
+
+
 def _finite(v: float) -> float:
     return v if math.isfinite(v) else 0.0
 
@@ -246,7 +255,7 @@ def assess(track: ImageTrack, cues: TrackCues, sensors: SensorSample, cfg: Confi
         ttc = scale_est[0] if on_wide else None
     report = TrackReport(
         id=int(track.id) if track.id is not None else -1,
-        bbox=tuple(round(v, 1) for v in track.bbox),  # type: ignore[arg-type]
+        bbox=_clip_box(track.bbox, camera),
         probability=round(float(track.probability), 4),
         flow=(round(track.velocity[0], 3), round(track.velocity[1], 3)),
         ttc_s=None if ttc is None else round(max(ttc, 0.0), 3),

@@ -228,6 +228,7 @@ class RuntimeConfig:
     record_dir: str = _p()
     record_rotate_s: float = _p(1.0)
     record_rotate_mb: float = _p(1.0)
+    replay_rate: float = _p(0.0, 1.0, lo_open=True)
 
 
 @dataclass(frozen=True)

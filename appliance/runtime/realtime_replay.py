@@ -91,12 +91,14 @@ def play_live(rec: Recording, cfg: Config, out_dir: str | Path, buses: Buses, *,
     first_can = next(iter(rec.can_messages()), None)
     t0_rec = min(first, first_can.timestamp) if first_can is not None else first
     track = rec.ptu()
+    # a slowed playback (runtime.replay_rate < 1) stretches the drivers' staleness limits alike
+    rate = cfg.runtime.replay_rate
     vehicle = hmi = ptu = sim = player_bus = None
     players: list[Any] = []
     try:
         vehicle = VehicleCanReader(
             vehicle_decoder(cfg), interface=buses.vehicle[0], channel=buses.vehicle[1],
-            stale_s=cfg.vehicle_can.stale_s, reopen_min_s=cfg.vehicle_can.reopen_min_s,
+            stale_s=cfg.vehicle_can.stale_s / rate, reopen_min_s=cfg.vehicle_can.reopen_min_s,
             reopen_max_s=cfg.vehicle_can.reopen_max_s, sink=sup.can_ring.put,
             raw_sink=recorder.add_can if recorder is not None else None).start()
         if play_can and not vehicle.wait_stats(lambda s: s.opens >= 1, 5.0):
@@ -112,7 +114,7 @@ def play_live(rec: Recording, cfg: Config, out_dir: str | Path, buses: Buses, *,
                             pan_offset_rad=p.pan_offset_rad, tilt_offset_rad=p.tilt_offset_rad,
                             poll_hz=p.poll_hz, timeout_s=p.timeout_s, retries=p.retries,
                             speed_rad_s=p.speed_rad_s, sink=ptu_sink).start()
-        clock = PlaybackClock(t0_rec, time.monotonic() + START_LEAD_S)
+        clock = PlaybackClock(t0_rec, time.monotonic() + START_LEAD_S, rate)
         can_player = None
         if play_can:
             player_bus = can.Bus(interface=buses.vehicle[0], channel=buses.vehicle[1])
@@ -122,9 +124,10 @@ def play_live(rec: Recording, cfg: Config, out_dir: str | Path, buses: Buses, *,
             players.append(PtuPlayer(track, ptu_sink, clock).start())
         if sim is not None:
             players.append(sim)
-        camera = RecordingSource(rec, clock, capacity=cfg.runtime.frame_buffer)
+        camera = RecordingSource(rec, clock, capacity=cfg.runtime.frame_buffer,
+                                 stale_s=cfg.camera.stale_s / rate)
         inputs = LiveInputs(camera=camera, vehicle=vehicle, ptu=ptu, hmi=hmi, players=players,
-                            clock_offset=clock.offset,
+                            to_recording=clock.recording,
                             ptu_enabled=ptu_simulator or track is not None,
                             finished=camera.finished)
         if on_start is not None:

@@ -31,18 +31,21 @@ log = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class PlaybackClock:
-    """Maps recording time to the monotonic clock: ``mono = t0_mono + (t_rec - t0_rec)``."""
+    """Maps recording time to the monotonic clock: ``mono = t0_mono + (t_rec - t0_rec) / rate``.
+
+    ``rate`` 1 plays in real time; below 1 slower (an emulated test machine).
+    """
 
     t0_rec: float
     t0_mono: float
-
-    @property
-    def offset(self) -> float:
-        """Add to a monotonic time to get the recording time."""
-        return self.t0_rec - self.t0_mono
+    rate: float = 1.0
 
     def mono(self, t_rec: float) -> float:
-        return self.t0_mono + (t_rec - self.t0_rec)
+        return self.t0_mono + (t_rec - self.t0_rec) / self.rate
+
+    def recording(self, t_mono: float) -> float:
+        """The recording time that monotonic time ``t_mono`` plays."""
+        return self.t0_rec + (t_mono - self.t0_mono) * self.rate
 
 
 def wait_until(stop: threading.Event, mono_t: float) -> bool:

@@ -65,7 +65,7 @@ class LiveInputs:
     ptu: Any | None = None
     hmi: HmiCanWriter | None = None
     players: list[Stoppable] = field(default_factory=list)
-    clock_offset: float = 0.0
+    to_recording: Callable[[float], float] | None = None  # monotonic -> recording time; None: same
     ptu_enabled: bool = True
     finished: threading.Event | None = None  # set when a recording source ran out
 
@@ -187,7 +187,7 @@ class Supervisor:
         sync = SensorSync(cfg.vehicle_can.stale_s, max(cfg.vehicle_can.stale_s, 2.0 / cfg.ptu.poll_hz),
                           ptu_present=inputs.ptu_enabled)
         state: PipelineState | None = None
-        off = inputs.clock_offset
+        rt = inputs.to_recording or (lambda t: t)
         last_status = 0.0
         camera_lost = False
         try:
@@ -196,14 +196,14 @@ class Supervisor:
                 now = self.clock()
                 self.notifier.watchdog()
                 for v in self.can_ring.drain():
-                    (sync.add_speed if v.kind is SignalKind.SPEED else sync.add_yaw_rate)(v.t + off, v.value)
+                    (sync.add_speed if v.kind is SignalKind.SPEED else sync.add_yaw_rate)(rt(v.t), v.value)
                 for p in self.ptu_ring.drain():
-                    sync.add_ptu(p.t + off, p.pan_rad, p.tilt_rad)
+                    sync.add_ptu(rt(p.t), p.pan_rad, p.tilt_rad)
                 cam_state = inputs.camera.state
                 lost = cam_state in (LinkState.LOST, LinkState.STALE) and cf is None
                 ended = inputs.finished is not None and inputs.finished.is_set()
                 if lost and not camera_lost and not ended:
-                    self._clear_warnings(inputs, (now + off), state)
+                    self._clear_warnings(inputs, rt(now), state)
                     state = None  # the scene has moved on: start afresh when frames return
                 camera_lost = lost
                 if cf is None:
@@ -213,7 +213,7 @@ class Supervisor:
                     continue
                 if state is None:
                     state = init_state(cfg, self.camera_model)
-                frame = Frame(cf.index, cf.t + off, cf.image)
+                frame = Frame(cf.index, rt(cf.t), cf.image)
                 self._last_frame = cf.index
                 sensors = sync.sample(frame.t)
                 state, out, decision = step(state, frame, sensors, cfg, self.camera_model)

@@ -1,7 +1,7 @@
 """``python -m tests.vcan_vm [options] [-- COMMAND ...]``: run COMMAND in the vcan guest.
 
 Without a command it runs the in-guest test suite: ``<this python> -m pytest -v
--m "vcan and not realtime" tests/test_vcan_*.py`` in the working directory. Prints
+-m vcan tests/test_vcan_*.py`` in the working directory. Prints
 the command's output, then one summary line on stderr, and exits with the command's
 exit status; 77 (the automake convention for "skipped") with one line when this
 machine cannot run the guest; 1 with one line when the guest failed (missing module,

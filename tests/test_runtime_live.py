@@ -80,9 +80,11 @@ def test_faults_are_flagged_and_recovered(static_drive: Path, tmp_path: Path, de
 
 
 def test_demo_run_recorded_replays_to_the_same_warnings(tmp_path: Path, default_config: Config) -> None:
-    src = simulate("pedestrian_crossing_nearside", tmp_path / "sim", seed=1, duration=4.0)
+    # the car is warned about well before the impact (the pedestrian only late, behind a parked car)
+    src = simulate("car_crossing_intersection", tmp_path / "sim", seed=1, duration=6.0)
     rec = Recording(src, defaults=default_config)
-    cfg = apply_meta(default_config, rec.meta)
+    # at half speed, so that a loaded test machine still processes (nearly) every frame live
+    cfg = apply_meta(default_config.with_overrides({"runtime": {"replay_rate": 0.5}}), rec.meta)
     recorder = LiveRecorder(tmp_path / "recorded", cfg).start()
     stats, _ = play_live(rec, cfg, tmp_path / "live", Buses.private_virtual(), recorder=recorder)
     recorder.stop()
@@ -98,22 +100,24 @@ def test_demo_run_recorded_replays_to_the_same_warnings(tmp_path: Path, default_
     # The live run may skip frames when processing falls behind (counted as overrun), and its
     # sensor samples arrive with live jitter, so the two runs are not identical frame for frame.
     # What must agree: both reach level 2, and they are at level 2 during largely the same part
-    # of the drive (times mapped from the recording's monotonic clock to the playback clock).
-    assert max(w["level"] for w in live) == max(w["level"] for w in again) == 2, (live, again)
-    offset = recorded.frame_times[0] - rec.frame_times[0]
+    # of the drive. The recording keeps the drive's clock (the playback was at half speed).
+    assert max((w["level"] for w in live), default=0) == 2, live
+    assert max((w["level"] for w in again), default=0) == 2, again
+    assert abs(recorded.frame_times[0] - rec.frame_times[0]) < 1e-6
+    assert abs(recorded.frame_times[-1] - rec.frame_times[-1]) < 0.05  # not stretched
     end = float(rec.frame_times[-1])
-    live_l2 = _level2_intervals(live, 0.0, end)
-    again_l2 = _level2_intervals(again, offset, end)
+    live_l2 = _level2_intervals(live, end)
+    again_l2 = _level2_intervals(again, end)
     overlap = sum(max(0.0, min(a1, b1) - max(a0, b0)) for a0, a1 in live_l2 for b0, b1 in again_l2)
     shorter = min(sum(b - a for a, b in live_l2), sum(b - a for a, b in again_l2))
     assert overlap >= 0.5 * shorter, (live_l2, again_l2)
 
 
-def _level2_intervals(rows: list[dict[str, object]], offset: float, end: float) -> list[tuple[float, float]]:
-    """[start, end) of every stretch at level 2, on the playback clock."""
+def _level2_intervals(rows: list[dict[str, object]], end: float) -> list[tuple[float, float]]:
+    """[start, end) of every stretch at level 2."""
     out, start = [], None
     for w in rows:
-        t = float(w["t"]) - offset  # type: ignore[arg-type]
+        t = float(w["t"])  # type: ignore[arg-type]
         if w["level"] == 2 and start is None:
             start = t
         elif w["level"] != 2 and start is not None:

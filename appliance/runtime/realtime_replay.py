@@ -115,6 +115,8 @@ def play_live(rec: Recording, cfg: Config, out_dir: str | Path, buses: Buses, *,
                             poll_hz=p.poll_hz, timeout_s=p.timeout_s, retries=p.retries,
                             speed_rad_s=p.speed_rad_s, sink=ptu_sink).start()
         clock = PlaybackClock(t0_rec, time.monotonic() + START_LEAD_S, rate)
+        if recorder is not None:
+            recorder.to_recording = clock.recording
         can_player = None
         if play_can:
             player_bus = can.Bus(interface=buses.vehicle[0], channel=buses.vehicle[1])

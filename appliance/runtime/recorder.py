@@ -14,6 +14,7 @@ import logging
 import queue
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -51,6 +52,9 @@ class LiveRecorder:
         self._segment_t0: float | None = None
         self._thread = threading.Thread(target=self._run, name="recorder", daemon=True)
         self.paths: list[Path] = []
+        # monotonic -> recording clock; live they are the same. A slowed playback
+        # (runtime.replay_rate) sets its clock here, so the recording keeps the drive's time.
+        self.to_recording: Callable[[float], float] = lambda t: t
         self._n = {"frames": 0, "can": 0, "ptu": 0, "dropped": 0, "errors": 0}
 
     def start(self) -> LiveRecorder:
@@ -119,18 +123,20 @@ class LiveRecorder:
             log.info("recording to %s", w.path)
             for item in pending:
                 self._sensor(item)
-        if w.last_t is not None and frame.t <= w.last_t:
+        t = self.to_recording(frame.t)
+        if w.last_t is not None and t <= w.last_t:
             self._n["errors"] += 1  # a camera clock step backwards: keep the recording valid
             return
-        w.write_frame(frame.image, frame.t)
+        w.write_frame(frame.image, t)
         self._n["frames"] += 1
 
     def _sensor(self, item: can.Message | PtuSample) -> None:
         assert self._writer is not None
         if isinstance(item, PtuSample):
-            self._writer.write_ptu(item.t, item.pan_rad, item.tilt_rad)
+            self._writer.write_ptu(self.to_recording(item.t), item.pan_rad, item.tilt_rad)
             self._n["ptu"] += 1
         else:
+            item.timestamp = self.to_recording(item.timestamp)
             self._writer.write_can(item)
             self._n["can"] += 1
 

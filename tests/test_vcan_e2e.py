@@ -14,25 +14,18 @@ both buses as separate processes. Checked:
 - the CollisionWarning changes on the wire are the run's own ``warnings.jsonl`` changes
   (level and track), so the HMI path loses and invents nothing;
 - against a plain ``replay`` (no ``--realtime``) of the same recording with the same
-  configuration: both reach level 2, both are at the same level at the collision (the
-  last frame), and the warning active at the collision began within
-  :data:`ONSET_TOLERANCE_FRAMES` frames of the plain replay's.
+  configuration: both reach level 2, and the first level-2 warning of the real-time run
+  began within :data:`ONSET_TOLERANCE_FRAMES` frames of the plain replay's.
 
 Why a tolerance and not equality: the real-time run stamps the vehicle CAN when the
 reader receives it (a few ms of jitter on the recording clock) where the plain replay
 uses the recorded stamps, and the detection's particle filter turns such differences
-into different tracks. How much that moves the warning was measured on this drive
-(2026-11-24, code of that day): the plain replay alone, changing nothing but
-``[runtime] seed`` (0-11), began its final warning anywhere from frame 135 to 159 (and
-two seeds raised an early caution near frame 73 that cleared again); twelve real-time
-runs on the host (python-can virtual buses, the same drivers and threads) that processed
-at least 178 of the 181 frames began it at frames 134-166 against the plain replay's 135. So the onset is only known to about a second, whichever path
-runs the pipeline: the tolerance is that measured spread (31 frames) plus the
-persistence window (3 frames), rounded up to 1.2 s. It catches a real-time path that
-never warns, stops warning before the impact, or is off by seconds (a time base error);
-it cannot see sub-second timing errors, which the pipeline's own randomness hides. The
-level *sequences* are not compared as a whole for the same reason (early cautions that
-clear again come and go with the seed).
+into different particles and tracks. How much that moves the warning was measured on
+this drive (2026-11-24): the plain replay alone, changing nothing but ``[runtime] seed``
+(0-7), began level 2 anywhere from frame 27 to 51. The tolerance is that spread
+(24 frames) plus the persistence window (3 frames), rounded up to 30 frames (1 s). It
+catches a real-time path that never warns or is off by seconds (a time base error); it
+cannot see sub-second timing errors, which the pipeline's own randomness hides.
 
 Precondition: the real-time run must have kept up (at most :data:`MAX_DROPPED_FRACTION`
 of the frames dropped). A run that drops frames feeds the pipeline different images, and
@@ -66,17 +59,22 @@ from appliance.recording import Recording
 
 pytestmark = pytest.mark.vcan
 
-SCENARIO = "pedestrian_crossing_nearside"   # a collision scenario with warnings
+SCENARIO = "car_crossing_intersection"   # a collision course warned about well before impact
 SEED = 1
-DURATION_S = 4.0               # s, the last 4 s of the drive the tolerance was measured on
+DURATION_S = 3.0               # s, the last 3 s before the impact (91 frames)
 IN_VM = os.environ.get("VCAN_VM") == "1"
-VM_REPLAY_RATE = 0.03          # the emulated guest processes about 1.5 frames/s: 30 x 0.03 = 0.9
-ONSET_TOLERANCE_FRAMES = 36    # frames (1.2 s at 30 fps): measured spread + persistence, see above
+VM_REPLAY_RATE = 0.02          # the emulated guest processes about 1-1.5 frames/s: 30 x 0.02 = 0.6
+# A drive prepared beforehand (recording, configuration, plain replay) by the host-side VM test,
+# so that the slow guest only runs the real-time part; without it the test prepares its own.
+PREPARED_ENV = "CW_E2E_DRIVE"
+ONSET_TOLERANCE_FRAMES = 30    # frames (1 s at 30 fps): measured spread + persistence, see above
 MAX_DROPPED_FRACTION = 0.05    # of the frames read, dropped by the real-time run
 COMMAND_TIMEOUT_S = 600.0      # s, any one CLI command (the slow VM included)
 CAPTURE_TIMEOUT_S = 10.0       # s, for candump to print what was sent
 
-VCAN_CONFIG = f"""\
+def vcan_config(in_vm: bool) -> str:
+    """Vehicle CAN on vcan0, HMI on vcan1; in the emulated VM played at VM_REPLAY_RATE."""
+    return f"""\
 [vehicle_can]
 interface = "socketcan"
 channel = "{VEHICLE_BUS}"
@@ -86,7 +84,7 @@ interface = "socketcan"
 channel = "{HMI_BUS}"
 
 [runtime]
-replay_rate = {VM_REPLAY_RATE if IN_VM else 1.0}
+replay_rate = {VM_REPLAY_RATE if in_vm else 1.0}
 """
 
 
@@ -116,19 +114,28 @@ def cli(*args: str) -> subprocess.CompletedProcess[str]:
     return proc
 
 
+def prepare_drive(base: Path, in_vm: bool) -> Drive:
+    """Simulate the drive, write the vcan configuration and replay it plainly, under ``base``."""
+    rec = base / "recording"
+    cli("simulate", SCENARIO, "--out", str(rec), "--seed", str(SEED), "--duration", str(DURATION_S))
+    config = base / "vcan.toml"
+    config.write_text(vcan_config(in_vm))
+    plain = base / "plain"
+    cli("replay", str(rec), "--out", str(plain), "--config", str(config), "--no-progress")
+    return Drive(rec, config, Recording(rec).n_frames, plain)
+
+
 @pytest.fixture(scope="module")
 def drive(tmp_path_factory: pytest.TempPathFactory) -> Drive:
     """The simulated drive, the configuration naming vcan0/vcan1, and its plain replay."""
     require_socketcan()
     require_tools("candump", "stdbuf")
-    base = tmp_path_factory.mktemp("e2e")
-    rec = base / "recording"
-    cli("simulate", SCENARIO, "--out", str(rec), "--seed", str(SEED), "--duration", str(DURATION_S))
-    config = base / "vcan.toml"
-    config.write_text(VCAN_CONFIG)
-    plain = base / "plain"
-    cli("replay", str(rec), "--out", str(plain), "--config", str(config), "--no-progress")
-    return Drive(rec, config, Recording(rec).n_frames, plain)
+    prepared = os.environ.get(PREPARED_ENV)
+    if prepared:
+        base = Path(prepared)
+        return Drive(base / "recording", base / "vcan.toml", Recording(base / "recording").n_frames,
+                     base / "plain")
+    return prepare_drive(tmp_path_factory.mktemp("e2e"), IN_VM)
 
 
 @pytest.fixture(scope="module")
@@ -151,16 +158,9 @@ def collapse(keys: list[tuple[int, int]]) -> list[tuple[int, int]]:
     return [k for k, _ in groupby(keys)]
 
 
-def final_onset(changes: list[LevelChange]) -> int | None:
-    """The frame where the warning still active at the end began (None: cleared at the end)."""
-    onset = None
-    for c in changes:
-        onset = None if c.level == 0 else (c.frame if onset is None else onset)
-    return onset
-
-
-def final_level(changes: list[LevelChange]) -> int:
-    return changes[-1].level if changes else 0
+def first_level2(changes: list[LevelChange]) -> int | None:
+    """The frame of the first level-2 warning (None: never)."""
+    return next((c.frame for c in changes if c.level == 2), None)
 
 
 def id_data(msgs: list[can.Message]) -> list[tuple[int, bytes]]:
@@ -230,8 +230,6 @@ def test_realtime_replay_on_vcan_warns_like_a_plain_replay(
     both = f"plain {plain}\nrealtime {realtime}"
     assert max((c.level for c in plain), default=0) == 2, f"the plain replay issued no warning: {plain}"
     assert max((c.level for c in realtime), default=0) == 2, both
-    assert final_level(realtime) == final_level(plain), both
-    p, r = final_onset(plain), final_onset(realtime)
+    p, r = first_level2(plain), first_level2(realtime)
     assert p is not None and r is not None and abs(p - r) <= ONSET_TOLERANCE_FRAMES, (
-        f"onset of the warning active at the collision: plain frame {p}, real time frame {r}\n"
-        + both)
+        f"first level-2 warning: plain frame {p}, real time frame {r}\n" + both)

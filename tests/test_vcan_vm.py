@@ -16,6 +16,7 @@ import pytest
 from vcan_vm import VmFailure, VmUnavailable, run_in_vm, suite_command
 from vcan_vm.__main__ import EXIT_SKIP, main
 from vcan_vm.guest import Kernel, pack_initramfs, resolve_modules, stage_initramfs
+from test_vcan_e2e import PREPARED_ENV, prepare_drive
 from vcan_vm.runner import boot, check_host, guest_env, job_script
 
 REPO = Path(__file__).resolve().parents[1]
@@ -48,11 +49,14 @@ def _qemu_children() -> list[str]:
     return names
 
 
-def test_vcan_suite_runs_in_the_vm() -> None:
+def test_vcan_suite_runs_in_the_vm(tmp_path: Path) -> None:
     kernel = vm_kernel()
+    # the end-to-end test's drive and plain replay are made here, on the fast host; the slow
+    # emulated guest only runs the real-time part (it finds them through PREPARED_ENV)
+    prepare_drive(tmp_path, in_vm=True)
     try:
         result = run_in_vm(suite_command(REPO), REPO, timeout_s=SUITE_LIMIT_S,
-                           kernel_image=kernel.image)
+                           kernel_image=kernel.image, env={PREPARED_ENV: str(tmp_path)})
     except VmFailure as exc:
         pytest.fail(f"vcan VM: {exc}", pytrace=False)
     tail = "\n".join(result.output.splitlines()[-30:])

@@ -380,9 +380,9 @@ def main(argv: list[str]) -> int:
             else:
                 w, h = case.camera.width, case.camera.height
                 per_frame = np.mean([np.sum(p.weights > HIGH_WEIGHT) for p in logs[mode].particles])
+                runs = f"{longest_false_run(logs[mode], w, h)} / {longest_false_run(logs[mode], w, h, 3)}"
                 rows.append((case.name, f"static {mode}: longest run, >=1 / >=3 w>0.5",
-                             f"{longest_false_run(logs[mode], w, h)} / {longest_false_run(logs[mode], w, h, 3)}"
-                             f" frames ({per_frame:.1f} w>0.5 per frame)"))
+                             f"{runs} frames ({per_frame:.1f} w>0.5 per frame)"))
     print(f"{'recording':34s} {'quantity':44s} value")
     for name, what, value in rows:
         print(f"{name:34s} {what:44s} {value}")

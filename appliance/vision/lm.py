@@ -25,6 +25,7 @@ JACOBIAN_STEP = 1e-7   # rad, forward-difference step (states are angles of orde
 LAMBDA_START = 1e-3
 LAMBDA_UP = 10.0
 LAMBDA_DOWN = 0.1
+RELATIVE_DECREASE = 1e-9   # an accepted step that lowers no cost by more than this: converged
 
 
 def _evaluate(residuals: BatchedResiduals, theta: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -47,7 +48,8 @@ def batched_lm(residuals: BatchedResiduals, theta0: NDArray[np.floating],
     theta0: (B, P) start states. Returns the estimates (B, P) and their costs (B,).
     A step is kept only where it lowers the cost (then the damping falls tenfold,
     otherwise it rises tenfold); at most ``iterations`` steps, fewer once every
-    problem's proposed step is shorter than ``tolerance`` (rad) in each component.
+    problem's proposed step is shorter than ``tolerance`` (rad) in each component, or
+    once a step lowers no problem's cost by more than ``RELATIVE_DECREASE`` of it.
     """
     theta = np.array(theta0, dtype=np.float64, copy=True)
     B, P = theta.shape
@@ -63,11 +65,12 @@ def batched_lm(residuals: BatchedResiduals, theta0: NDArray[np.floating],
         delta = np.linalg.solve(damped, -g[:, :, None])[:, :, 0]
         r_new, J_new, cost_new = _evaluate(residuals, theta + delta)
         better = cost_new < cost
+        settled = np.all(~better | (cost - cost_new <= RELATIVE_DECREASE * cost))
         theta = np.where(better[:, None], theta + delta, theta)
         r = np.where(better[:, None], r_new, r)
         J = np.where(better[:, None, None], J_new, J)
         cost = np.where(better, cost_new, cost)
         lam = np.clip(np.where(better, lam * LAMBDA_DOWN, lam * LAMBDA_UP), 1e-12, 1e12)
-        if np.all(np.abs(delta) < tolerance):
+        if np.all(np.abs(delta) < tolerance) or (settled and np.any(better)):
             break
     return theta, cost

@@ -26,7 +26,7 @@ from appliance.vision.lm import BatchedResiduals, batched_lm
 from appliance.vision.msac import truncated_loss, weighted_minimal_samples
 
 HYPOTHESIS_TOLERANCE = 1e-6   # rad: 1e-6 rad moves a pixel by < 0.001 px, enough to score
-FINAL_TOLERANCE = 1e-9        # rad
+FINAL_TOLERANCE = 1e-7        # rad: 1e-7 rad moves a pixel by < 1e-4 px
 
 @dataclass(frozen=True)
 class MapProblem:
@@ -85,13 +85,16 @@ def map_residuals(problem: MapProblem, x_prev: NDArray[np.floating],
     """
     per_problem = np.ndim(x_prev) == 3
     a0, b0 = rays(x_prev, problem.K), rays(x_cur, problem.K)
+    repeated: dict[int, tuple[FloatArray, FloatArray]] = {}
 
     def residuals(theta: FloatArray) -> FloatArray:
         B, E, P = theta.shape
         flat = theta.reshape(B * E, P)
         a, b = a0, b0
         if per_problem:
-            a, b = np.repeat(a0, E, axis=0), np.repeat(b0, E, axis=0)
+            if E not in repeated:
+                repeated[E] = (np.repeat(a0, E, axis=0), np.repeat(b0, E, axis=0))
+            a, b = repeated[E]
         if problem.translating:
             data = epipolar_distances_rays(flat, a, b, problem.K)         # eq. 11
         else:

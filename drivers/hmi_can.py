@@ -37,7 +37,7 @@ import can
 
 from drivers.backoff import Backoff
 from drivers.hmi_codec import HmiCodec, HmiStatus, HmiWarning
-from drivers.link import Counters, LinkState, LinkStatus
+from drivers.link import Counters, LinkState, LinkStatus, Reporting
 from drivers.vehicle_can import BusFactory, open_bus
 
 log = logging.getLogger(__name__)
@@ -107,7 +107,7 @@ class HmiCanStats:
     last_error: str = ""
 
 
-class HmiCanWriter:
+class HmiCanWriter(Reporting[HmiCanStats]):
     """Live HMI writer; see the module docstring.
 
     :param log_path: where to log every sent frame (candump -L); None: no log.
@@ -130,6 +130,7 @@ class HmiCanWriter:
         self._factory = bus_factory
         self._status = LinkStatus(f"HMI CAN {interface}:{channel}", log)
         self._counts = Counters()
+        self._stats_type = HmiCanStats
         self._cond = threading.Condition()
         self._warning = HmiWarning()
         self._appliance = HmiStatus()
@@ -170,21 +171,6 @@ class HmiCanWriter:
                 self._appliance = status
             self._changed = True
             self._cond.notify_all()
-
-    @property
-    def state(self) -> LinkState:
-        return self._status.state
-
-    def wait_state(self, state: LinkState, timeout: float) -> bool:
-        return self._status.wait_for(state, timeout)
-
-    @property
-    def stats(self) -> HmiCanStats:
-        counts, last_error = self._counts.snapshot()
-        return HmiCanStats(**counts, last_error=last_error)
-
-    def wait_stats(self, predicate: Callable[[HmiCanStats], bool], timeout: float) -> bool:
-        return self._counts.wait_for(lambda c: predicate(HmiCanStats(**c)), timeout)
 
     # ---------------------------------------------------------------- threads
 

@@ -7,7 +7,7 @@ import logging
 import threading
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Generic, TypeVar
 
 
 class LinkState(enum.Enum):
@@ -107,3 +107,36 @@ class Counters:
                     return False
                 self._cond.wait(remaining)
             return True
+
+
+S = TypeVar("S")
+
+
+class Reporting(Generic[S]):
+    """What every driver reports, in one place: its link state and its counters, both waitable.
+
+    A driver sets ``_status`` (:class:`LinkStatus`), ``_counts`` (:class:`Counters`) and the
+    frozen dataclass its ``stats`` snapshot is made of (``_stats_type``, with a
+    ``last_error`` field).
+    """
+
+    _status: LinkStatus
+    _counts: Counters
+    _stats_type: Callable[..., S]
+
+    @property
+    def state(self) -> LinkState:
+        return self._status.state
+
+    def wait_state(self, state: LinkState, timeout: float) -> bool:
+        """Block until the driver reaches ``state`` (or ``timeout`` s); True if it did."""
+        return self._status.wait_for(state, timeout)
+
+    @property
+    def stats(self) -> S:
+        counts, last_error = self._counts.snapshot()
+        return self._stats_type(**counts, last_error=last_error)
+
+    def wait_stats(self, predicate: Callable[[S], bool], timeout: float) -> bool:
+        """Block until ``predicate(stats)`` holds or ``timeout`` s pass; True if it did."""
+        return self._counts.wait_for(lambda c: predicate(self._stats_type(**c)), timeout)

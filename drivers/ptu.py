@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import serial
 
 from drivers.backoff import Backoff
-from drivers.link import Counters, LinkState, LinkStatus
+from drivers.link import Counters, LinkState, LinkStatus, Reporting
 from drivers.ptu_link import (
     NoReply,
     PtuCommandError,
@@ -132,7 +132,7 @@ def open_serial(port: str, baud: int, timeout: float) -> serial.SerialBase:
     return serial.Serial(port, baudrate=baud, timeout=timeout, exclusive=True)
 
 
-class PtuDriver:
+class PtuDriver(Reporting[PtuStats]):
     """The PTU driver thread. Parameters are plain values (see config ``[ptu]``).
 
     :param port: device path, symlink or pyserial URL.
@@ -167,6 +167,7 @@ class PtuDriver:
         self._wake = threading.Event()
         self._lock = threading.Lock()
         self._counts = Counters()
+        self._stats_type = PtuStats
         self._latest: PtuSample | None = None
         self._cal: dict[str, AxisCalibration] = {}
         self._speed_bounds: dict[str, tuple[int, int]] = {}
@@ -196,23 +197,6 @@ class PtuDriver:
     def __exit__(self, *exc: object) -> None:
         self.stop()
 
-    @property
-    def state(self) -> LinkState:
-        return self._status.state
-
-    def wait_state(self, state: LinkState, timeout: float) -> bool:
-        """Block until the driver reaches ``state`` (or ``timeout`` s); True if it did."""
-        return self._status.wait_for(state, timeout)
-
-    @property
-    def stats(self) -> PtuStats:
-        counts, last_error = self._counts.snapshot()
-        return PtuStats(**counts, last_error=last_error)
-
-    def wait_stats(self, predicate: Callable[[PtuStats], bool], timeout: float) -> bool:
-        """Block until ``predicate(stats)`` holds or ``timeout`` s pass; True if it did."""
-        return self._counts.wait_for(
-            lambda c: predicate(PtuStats(**c, last_error="")), timeout)
 
     @property
     def latest(self) -> PtuSample | None:

@@ -43,7 +43,7 @@ from typing import Any
 import can
 
 from drivers.backoff import Backoff
-from drivers.link import Counters, LinkState, LinkStatus
+from drivers.link import Counters, LinkState, LinkStatus, Reporting
 from drivers.vehicle_signals import (
     FrameDecodeError,
     SignalKind,
@@ -102,7 +102,7 @@ class _Listener(can.Listener):
         pass
 
 
-class VehicleCanReader:
+class VehicleCanReader(Reporting[VehicleCanStats]):
     """Reads the vehicle bus; see the module docstring.
 
     :param decoder: the vehicle's DBC and signal names.
@@ -138,6 +138,7 @@ class VehicleCanReader:
         self._backoff = Backoff(reopen_min_s, reopen_max_s)
         self._status = LinkStatus(f"vehicle CAN {interface}:{channel}", log)
         self._counts = Counters()
+        self._stats_type = VehicleCanStats
         self._latest: dict[SignalKind, VehicleSignal] = {}
         self._stop = threading.Event()
         self._lost = threading.Event()
@@ -165,21 +166,6 @@ class VehicleCanReader:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
-
-    @property
-    def state(self) -> LinkState:
-        return self._status.state
-
-    def wait_state(self, state: LinkState, timeout: float) -> bool:
-        return self._status.wait_for(state, timeout)
-
-    @property
-    def stats(self) -> VehicleCanStats:
-        counts, last_error = self._counts.snapshot()
-        return VehicleCanStats(**counts, last_error=last_error)
-
-    def wait_stats(self, predicate: Callable[[VehicleCanStats], bool], timeout: float) -> bool:
-        return self._counts.wait_for(lambda c: predicate(VehicleCanStats(**c)), timeout)
 
     def latest(self, kind: SignalKind) -> VehicleSignal | None:
         """The newest value of ``kind``, or None if none was received yet."""

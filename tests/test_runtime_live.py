@@ -153,3 +153,32 @@ def test_sigterm_stops_the_service_within_2_s(tmp_path: Path) -> None:
     assert "Traceback" not in rest
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["frames_processed"] == 0
+
+
+def test_recorder_rotates_by_duration_and_each_piece_replays(tmp_path: Path, default_config: Config) -> None:
+    """run --record: a long drive becomes several recordings, each valid on its own."""
+    import can as pycan
+    import numpy as np
+
+    from drivers.camera import CameraFrame
+    from drivers.ptu import PtuSample
+
+    cfg = default_config.with_overrides({"runtime": {"record_rotate_s": 1.0}})
+    rec = LiveRecorder(tmp_path / "rec", cfg).start()
+    rng = np.random.default_rng(0)
+    for i in range(75):  # 2.5 s at 30 frames/s
+        t = 100.0 + i / 30.0
+        rec.add_can(pycan.Message(timestamp=t - 0.01, arbitration_id=0x1A0, is_extended_id=False,
+                                  data=b"\x10\x0e\x00\x00"))
+        rec.add_ptu(PtuSample(t - 0.005, 0.0, 0.0))
+        rec.add_frame(CameraFrame(i, t, rng.integers(0, 255, (480, 640), dtype=np.uint8)))
+    rec.stop()
+    assert rec.stats.recordings == 3 and rec.stats.frames == 75 and rec.stats.dropped == 0
+    frames = 0
+    for path in rec.paths:
+        r = Recording(path, defaults=default_config)
+        r.validate()
+        frames += r.n_frames
+        assert r.frame_times[-1] - r.frame_times[0] < 1.0
+        assert len(list(r.can_messages())) >= r.n_frames - 1
+    assert frames == 75

@@ -43,17 +43,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--debug", action="store_true", help="print tracebacks of internal errors")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
-    run = sub.add_parser("run", help="live: V4L2 camera, serial PTU, SocketCAN (the systemd service)")
+    run = sub.add_parser(
+        "run", help="live: V4L2 camera, serial PTU, SocketCAN (the systemd service)"
+    )
     run.add_argument("--config", required=True, help="TOML file overriding config/default.toml")
-    run.add_argument("--record", metavar="DIR", help="also write every input as drive recordings under DIR")
+    run.add_argument(
+        "--record", metavar="DIR", help="also write every input as drive recordings under DIR"
+    )
     run.add_argument("--out", metavar="DIR", help="output directory (default: runtime.out_dir)")
 
     rp = sub.add_parser("replay", help="run the pipeline on a drive recording")
     rp.add_argument("recording", help="drive recording directory")
     rp.add_argument("--out", required=True, metavar="DIR", help="output directory")
     rp.add_argument("--config", help="TOML file overriding config/default.toml")
-    rp.add_argument("--realtime", action="store_true",
-                    help="feed the drivers' recording sources at the recorded pace, as live")
+    rp.add_argument(
+        "--realtime",
+        action="store_true",
+        help="feed the drivers' recording sources at the recorded pace, as live",
+    )
     rp.add_argument("--video", metavar="FILE", help="also write an annotated video")
     rp.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
 
@@ -61,13 +68,23 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("scenario", nargs="?", help="scenario name (see --list)")
     sim.add_argument("--out", metavar="RECORDING", help="recording directory to create")
     sim.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    sim.add_argument("--duration", type=float, metavar="S", help="override the scenario duration, s")
-    sim.add_argument("--video", choices=("mkv", "avi", "png"), default="mkv",
-                     help="frame storage (default mkv, FFV1 lossless)")
+    sim.add_argument(
+        "--duration", type=float, metavar="S", help="override the scenario duration, s"
+    )
+    sim.add_argument(
+        "--video",
+        choices=("mkv", "avi", "png"),
+        default="mkv",
+        help="frame storage (default mkv, FFV1 lossless)",
+    )
     sim.add_argument("--list", action="store_true", help="list the scenarios and exit")
 
-    demo = sub.add_parser("demo", help="simulated drives through the real drivers, live (the main job)")
-    demo.add_argument("--out", metavar="DIR", default="out/demo", help="output directory (default out/demo)")
+    demo = sub.add_parser(
+        "demo", help="simulated drives through the real drivers, live (the main job)"
+    )
+    demo.add_argument(
+        "--out", metavar="DIR", default="out/demo", help="output directory (default out/demo)"
+    )
     demo.add_argument("--config", help="TOML file overriding config/default.toml")
 
     ev = sub.add_parser("evaluate", help="score a run against the recording's truth.json")
@@ -76,8 +93,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     ptu = sub.add_parser("ptu-sim", help="simulated pan-tilt unit on a pseudo-terminal")
     ptu.add_argument("--latency", type=float, default=0.0, metavar="S", help="reply latency, s")
-    ptu.add_argument("--garbage", type=float, default=0.0, metavar="P",
-                     help="probability of garbage bytes before a reply")
+    ptu.add_argument(
+        "--garbage",
+        type=float,
+        default=0.0,
+        metavar="P",
+        help="probability of garbage bytes before a reply",
+    )
     ptu.add_argument("--link", metavar="PATH", help="also create a symlink to the pty at PATH")
     return p
 
@@ -100,8 +122,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as exc:  # the last line of defence: one line, not a traceback
         if args.debug:
             raise
-        print(f"{PROG} {args.command}: internal error: {type(exc).__name__}: {exc} "
-              "(rerun with --debug for details)", file=sys.stderr)
+        print(
+            f"{PROG} {args.command}: internal error: {type(exc).__name__}: {exc} "
+            "(rerun with --debug for details)",
+            file=sys.stderr,
+        )
         return 1
 
 

@@ -32,7 +32,7 @@ DRIVES = (("pedestrian_crossing_nearside", 1, None), ("pedestrian_stops_at_kerb"
 
 
 def socketcan_available(channel: str) -> bool:
-    """True when a raw CAN socket can bind ``channel`` (the kernel has CAN and the interface exists)."""
+    """True when a raw CAN socket can bind ``channel`` (kernel CAN support and the interface)."""
     try:
         with socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW) as s:
             s.bind((channel,))
@@ -104,8 +104,11 @@ def main(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.monotonic()
     buses, bus_text = demo_buses()
-    print(f"collision-warning demo: {len(DRIVES)} simulated drives, live through the drivers "
-          f"({bus_text}; PTU simulator on a pseudo-terminal)", flush=True)
+    print(
+        f"collision-warning demo: {len(DRIVES)} simulated drives, live through the drivers "
+        f"({bus_text}; PTU simulator on a pseudo-terminal)",
+        flush=True,
+    )
     rows = []
     for rec_dir in prepare_recordings(out):
         rec = Recording(rec_dir, defaults=cfg)
@@ -114,20 +117,43 @@ def main(args: argparse.Namespace) -> int:
         run_cfg = apply_meta(cfg, rec.meta)
         run_dir = rec_dir.parent / "run"
         truth = rec.truth() or {}
-        print(f"\n== {truth.get('scenario', rec_dir.parent.name)}: "
-              f"{'collision at t=%.2f' % truth['collision_t'] if truth.get('collision_t') else 'no collision'}"
-              f" ({rec.n_frames} frames, real time)", flush=True)
-        _, summary = play_live(rec, run_cfg, run_dir, buses, ptu_simulator=True,
-                               on_event=lambda line: print("  " + line, flush=True))
+        ctime = truth.get("collision_t")
+        what = f"collision at t={ctime:.2f}" if ctime else "no collision"
+        name = truth.get("scenario", rec_dir.parent.name)
+        print(f"\n== {name}: {what} ({rec.n_frames} frames, real time)", flush=True)
+        _, summary = play_live(
+            rec,
+            run_cfg,
+            run_dir,
+            buses,
+            ptu_simulator=True,
+            on_event=lambda line: print("  " + line, flush=True),
+        )
         rows.append(drive_summary(rec, run_dir, summary))
     print("\nsummary")
-    header = ("scenario", "collision", "level2_warnings", "lead_time_s", "frames", "frame_rate",
-              "latency_ms_median", "latency_ms_p99")
+    header = (
+        "scenario",
+        "collision",
+        "level2_warnings",
+        "lead_time_s",
+        "frames",
+        "frame_rate",
+        "latency_ms_median",
+        "latency_ms_p99",
+    )
     print("  " + "  ".join(f"{h:>18}" if i else f"{h:<30}" for i, h in enumerate(header)))
     for r in rows:
-        print("  " + "  ".join(f"{str(r[h]):>18}" if i else f"{str(r[h]):<30}" for i, h in enumerate(header)))
+        print(
+            "  "
+            + "  ".join(
+                f"{str(r[h]):>18}" if i else f"{str(r[h]):<30}" for i, h in enumerate(header)
+            )
+        )
     (out / "demo_summary.json").write_text(json.dumps(rows, indent=2) + "\n")
-    print(f"\noutputs in {out}/<scenario>/run (replay or evaluate the recordings next to them); "
-          f"{time.monotonic() - t_start:.0f} s", flush=True)
+    print(
+        f"\noutputs in {out}/<scenario>/run (replay or evaluate the recordings next to them); "
+        f"{time.monotonic() - t_start:.0f} s",
+        flush=True,
+    )
     sys.stdout.flush()
     return 0

@@ -1,4 +1,4 @@
-"""``collision-warning run --config FILE [--record DIR]``: live, with the real drivers (the service).
+"""``collision-warning run --config FILE [--record DIR]``: live, with the real drivers.
 
 V4L2 camera, serial PTU, SocketCAN vehicle bus and HMI bus, as the configuration
 says. A device that is missing at start is reported in one line and retried with
@@ -35,35 +35,72 @@ from drivers.vehicle_can import VehicleCanReader
 log = logging.getLogger("collision-warning")
 
 
-def build_inputs(cfg: Config, sup: Supervisor, out_dir: Path, recorder: LiveRecorder | None) -> LiveInputs:
+def build_inputs(
+    cfg: Config, sup: Supervisor, out_dir: Path, recorder: LiveRecorder | None
+) -> LiveInputs:
     """Open the real drivers as configured, their sinks pointing at the supervisor's rings."""
     c, v, p, h = cfg.camera, cfg.vehicle_can, cfg.ptu, cfg.hmi_can
-    camera = create_source("v4l2", device=c.device, width=c.width, height=c.height, fps=c.fps,
-                           pixel_format=c.pixel_format, reopen_min_s=c.reopen_min_s,
-                           reopen_max_s=c.reopen_max_s, late_factor=c.late_factor, stale_s=c.stale_s,
-                           timestamps=c.timestamps)
-    vehicle = VehicleCanReader(vehicle_decoder(cfg), interface=v.interface, channel=v.channel,
-                               stale_s=v.stale_s, reopen_min_s=v.reopen_min_s, reopen_max_s=v.reopen_max_s,
-                               sink=sup.can_ring.put,
-                               raw_sink=recorder.add_can if recorder is not None else None).start()
+    camera = create_source(
+        "v4l2",
+        device=c.device,
+        width=c.width,
+        height=c.height,
+        fps=c.fps,
+        pixel_format=c.pixel_format,
+        reopen_min_s=c.reopen_min_s,
+        reopen_max_s=c.reopen_max_s,
+        late_factor=c.late_factor,
+        stale_s=c.stale_s,
+        timestamps=c.timestamps,
+    )
+    vehicle = VehicleCanReader(
+        vehicle_decoder(cfg),
+        interface=v.interface,
+        channel=v.channel,
+        stale_s=v.stale_s,
+        reopen_min_s=v.reopen_min_s,
+        reopen_max_s=v.reopen_max_s,
+        sink=sup.can_ring.put,
+        raw_sink=recorder.add_can if recorder is not None else None,
+    ).start()
     ptu = None
     if p.enabled:
+
         def ptu_sink(sample: PtuSample) -> None:
             sup.ptu_ring.put(sample)
             if recorder is not None:
                 recorder.add_ptu(sample)
 
-        ptu = PtuDriver(p.port, baud=p.baud, pan_sign=p.pan_sign, tilt_sign=p.tilt_sign,
-                        pan_offset_rad=p.pan_offset_rad, tilt_offset_rad=p.tilt_offset_rad,
-                        poll_hz=p.poll_hz, timeout_s=p.timeout_s, retries=p.retries,
-                        speed_rad_s=p.speed_rad_s, reopen_min_s=p.reopen_min_s,
-                        reopen_max_s=p.reopen_max_s, fault_after=p.fault_after, sink=ptu_sink).start()
-    hmi = HmiCanWriter(hmi_codec(cfg), interface=h.interface, channel=h.channel, period_s=h.period_s,
-                       tx_queue=h.tx_queue, log_path=out_dir / "can_out.log",
-                       reopen_min_s=h.reopen_min_s, reopen_max_s=h.reopen_max_s).start()
+        ptu = PtuDriver(
+            p.port,
+            baud=p.baud,
+            pan_sign=p.pan_sign,
+            tilt_sign=p.tilt_sign,
+            pan_offset_rad=p.pan_offset_rad,
+            tilt_offset_rad=p.tilt_offset_rad,
+            poll_hz=p.poll_hz,
+            timeout_s=p.timeout_s,
+            retries=p.retries,
+            speed_rad_s=p.speed_rad_s,
+            reopen_min_s=p.reopen_min_s,
+            reopen_max_s=p.reopen_max_s,
+            fault_after=p.fault_after,
+            sink=ptu_sink,
+        ).start()
+    hmi = HmiCanWriter(
+        hmi_codec(cfg),
+        interface=h.interface,
+        channel=h.channel,
+        period_s=h.period_s,
+        tx_queue=h.tx_queue,
+        log_path=out_dir / "can_out.log",
+        reopen_min_s=h.reopen_min_s,
+        reopen_max_s=h.reopen_max_s,
+    ).start()
     players: list[Any] = [recorder] if recorder is not None else []
-    return LiveInputs(camera=camera, vehicle=vehicle, ptu=ptu, hmi=hmi, players=players,
-                      ptu_enabled=p.enabled)
+    return LiveInputs(
+        camera=camera, vehicle=vehicle, ptu=ptu, hmi=hmi, players=players, ptu_enabled=p.enabled
+    )
 
 
 def install_signal_handlers(stop: threading.Event) -> None:
@@ -84,17 +121,31 @@ def main(args: argparse.Namespace) -> int:
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise RuntimeFailure(f"{out_dir}: cannot create the output directory: {exc.strerror}") from None
+        raise RuntimeFailure(
+            f"{out_dir}: cannot create the output directory: {exc.strerror}"
+        ) from None
     record_dir = args.record or (cfg.runtime.record_dir if cfg.runtime.record else None)
     recorder = LiveRecorder(record_dir, cfg).start() if record_dir else None
-    sup = Supervisor(cfg, RunOutputs(out_dir, can_log=False), notifier=SdNotifier(),
-                     on_event=lambda line: log.info("%s", line), recorder=recorder)
+    sup = Supervisor(
+        cfg,
+        RunOutputs(out_dir, can_log=False),
+        notifier=SdNotifier(),
+        on_event=lambda line: log.info("%s", line),
+        recorder=recorder,
+    )
     install_signal_handlers(sup.stop_event)
     inputs = build_inputs(cfg, sup, out_dir, recorder)
-    log.info("running: camera %s, vehicle CAN %s:%s, PTU %s, HMI %s:%s, outputs %s%s",
-             cfg.camera.device, cfg.vehicle_can.interface, cfg.vehicle_can.channel,
-             cfg.ptu.port if cfg.ptu.enabled else "disabled", cfg.hmi_can.interface, cfg.hmi_can.channel,
-             out_dir, f", recording to {record_dir}" if record_dir else "")
+    log.info(
+        "running: camera %s, vehicle CAN %s:%s, PTU %s, HMI %s:%s, outputs %s%s",
+        cfg.camera.device,
+        cfg.vehicle_can.interface,
+        cfg.vehicle_can.channel,
+        cfg.ptu.port if cfg.ptu.enabled else "disabled",
+        cfg.hmi_can.interface,
+        cfg.hmi_can.channel,
+        out_dir,
+        f", recording to {record_dir}" if record_dir else "",
+    )
     stats = sup.run(inputs)
     extra: dict[str, Any] = {"warnings_issued": sum(1 for w in stats.warnings if w.level > 0)}
     if recorder is not None:

@@ -70,7 +70,9 @@ def step(
     t0 = clock()
     vision, ego, particles = perceive(state.vision, frame, sensors, state.prob_map, cfg, camera)
     t1 = clock()
-    decision, out = decide(state.decision, frame.index, frame.t, particles, ego, sensors, cfg, camera)
+    decision, out = decide(
+        state.decision, frame.index, frame.t, particles, ego, sensors, cfg, camera
+    )
     t2 = clock()
     result = StepOutput(
         frame=frame.index,
@@ -82,6 +84,7 @@ def step(
         warning_level=out.warning_level,
         stage_ms={"vision": (t1 - t0) * 1e3, "decision": (t2 - t1) * 1e3, "total": (t2 - t0) * 1e3},
     )
-    new_state = PipelineState(vision=vision, decision=decision, prob_map=out.prob_map,
-                              frames=state.frames + 1)
+    new_state = PipelineState(
+        vision=vision, decision=decision, prob_map=out.prob_map, frames=state.frames + 1
+    )
     return new_state, result, out

@@ -79,8 +79,11 @@ def replay(
     camera = camera_from_config(cfg)
     decoder = vehicle_decoder(cfg)
     ptu = rec.ptu()
-    sync = SensorSync(cfg.vehicle_can.stale_s, max(cfg.vehicle_can.stale_s, 2.0 / cfg.ptu.poll_hz),
-                      ptu_present=ptu is not None)
+    sync = SensorSync(
+        cfg.vehicle_can.stale_s,
+        max(cfg.vehicle_can.stale_s, 2.0 / cfg.ptu.poll_hz),
+        ptu_present=ptu is not None,
+    )
     state = init_state(cfg, camera)
     hmi = HmiScheduler(hmi_codec(cfg), cfg.hmi_can.period_s)
     health = Health()
@@ -92,7 +95,9 @@ def replay(
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=rec.n_frames, unit="frame", file=sys.stderr, desc=rec.path.name, leave=False)
+        bar = tqdm(
+            total=rec.n_frames, unit="frame", file=sys.stderr, desc=rec.path.name, leave=False
+        )
     t_start = time.perf_counter()
     with RunOutputs(out_dir) as outputs:
         for frame in rec.frames():
@@ -114,8 +119,13 @@ def replay(
             change = health.update(True, faults, fps, 0.0)
             if change is not None:
                 result.status_changes.append(f"{frame.t:.3f} {change}")
-            outputs.write_can(hmi.update(frame.t, hmi_warning(decision.warning_level, decision.warning_track),
-                                         hmi_status(health.status)))
+            outputs.write_can(
+                hmi.update(
+                    frame.t,
+                    hmi_warning(decision.warning_level, decision.warning_track),
+                    hmi_status(health.status),
+                )
+            )
             c1 = time.perf_counter()
             result.frames_processed += 1
             for k, v in out.stage_ms.items():
@@ -165,7 +175,9 @@ def summary(result: ReplayResult, cfg: Config) -> dict[str, Any]:
         "frames_processed": result.frames_processed,
         "frames_dropped": result.frames_read - result.frames_processed,
         "processing_ms": {k: timing_stats(v) for k, v in result.stage_ms.items()},
-        "replay_frames_per_s": round(result.frames_processed / result.wall_s, 2) if result.wall_s else None,
+        "replay_frames_per_s": round(result.frames_processed / result.wall_s, 2)
+        if result.wall_s
+        else None,
         "can_frames_read": result.can_frames,
         "can_errors": dict(sorted(result.can_errors.items())),
         "status_changes": result.status_changes,
@@ -200,6 +212,8 @@ def main(args: argparse.Namespace) -> int:
     finally:
         if video is not None:
             video.close()
-    print(f"replayed {result.frames_processed} frames of {rec.path} in {result.wall_s:.1f} s "
-          f"({result.frames_processed / max(result.wall_s, 1e-9):.1f} frames/s) -> {out_dir}")
+    print(
+        f"replayed {result.frames_processed} frames of {rec.path} in {result.wall_s:.1f} s "
+        f"({result.frames_processed / max(result.wall_s, 1e-9):.1f} frames/s) -> {out_dir}"
+    )
     return 0

@@ -44,16 +44,26 @@ def main(argv: list[str]) -> int:
             t0 = time.perf_counter()
             fast = replay(rec, cfg, Path(tmp) / f"{scenario}-fast")
             wall = time.perf_counter() - t0
-            _, live = play_live(Recording(rec_dir, defaults=base), cfg, Path(tmp) / f"{scenario}-live",
-                                Buses.private_virtual())
+            _, live = play_live(
+                Recording(rec_dir, defaults=base),
+                cfg,
+                Path(tmp) / f"{scenario}-live",
+                Buses.private_virtual(),
+            )
             e2e = live["processing_ms"]["end_to_end"]
-            rows.append({
-                "drive": scenario, "frames": rec.n_frames,
-                "replay_fps": round(fast.frames_processed / wall, 1),
-                "live_processed": live["frames_processed"], "live_dropped": live["frames_dropped"],
-                "latency_median_ms": e2e["median"], "latency_p99_ms": e2e["p99"], "latency_max_ms": e2e["max"],
-                "pipeline_median_ms": live["processing_ms"]["total"]["median"],
-            })
+            rows.append(
+                {
+                    "drive": scenario,
+                    "frames": rec.n_frames,
+                    "replay_fps": round(fast.frames_processed / wall, 1),
+                    "live_processed": live["frames_processed"],
+                    "live_dropped": live["frames_dropped"],
+                    "latency_median_ms": e2e["median"],
+                    "latency_p99_ms": e2e["p99"],
+                    "latency_max_ms": e2e["max"],
+                    "pipeline_median_ms": live["processing_ms"]["total"]["median"],
+                }
+            )
     cols = list(rows[0])
     print("  ".join(f"{c:>18}" for c in cols))
     for r in rows:

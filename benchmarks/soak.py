@@ -80,7 +80,9 @@ def main(argv: list[str]) -> int:
     cv2.setNumThreads(1)
     base = load_config()
     with tempfile.TemporaryDirectory() as tmp:
-        rec_dir = simulate("pedestrian_stops_at_kerb", Path(tmp) / "loop", seed=5, duration=args.loop_seconds)
+        rec_dir = simulate(
+            "pedestrian_stops_at_kerb", Path(tmp) / "loop", seed=5, duration=args.loop_seconds
+        )
         rec = Recording(rec_dir, defaults=base)
         loops = max(2, math.ceil(args.minutes * 60.0 / args.loop_seconds))
         looped = LoopedRecording(rec, loops)
@@ -89,20 +91,34 @@ def main(argv: list[str]) -> int:
 
         def on_start(rig: LiveRig) -> None:
             # warm-up: the first loop (buffers, caches and the tracker reach their working size)
-            timer = threading.Timer(looped.period + 1.0, lambda: marks.__setitem__("warm", rss_mb()))
+            timer = threading.Timer(
+                looped.period + 1.0, lambda: marks.__setitem__("warm", rss_mb())
+            )
             timer.daemon = True
             timer.start()
 
         marks["start"] = rss_mb()
-        stats, summary = play_live(looped, cfg, Path(tmp) / "run", Buses.private_virtual(),  # type: ignore[arg-type]
-                                   on_start=on_start)
+        stats, summary = play_live(
+            looped,
+            cfg,
+            Path(tmp) / "run",
+            Buses.private_virtual(),  # type: ignore[arg-type]
+            on_start=on_start,
+        )
         marks["end"] = rss_mb()
     warm = marks.get("warm", marks["start"])
-    print(f"soak: {loops} x {looped.period:.1f} s = {loops * looped.period / 60:.1f} min of driving")
-    print(f"frames read {summary['frames_read']}, processed {summary['frames_processed']}, "
-          f"dropped (overrun) {summary['frames_dropped']}")
-    print(f"RSS start {marks['start']:.1f} MB, after warm-up {warm:.1f} MB, end {marks['end']:.1f} MB; "
-          f"growth after warm-up {marks['end'] - warm:+.1f} MB (target < 10 MB)")
+    print(
+        f"soak: {loops} x {looped.period:.1f} s = {loops * looped.period / 60:.1f} min of driving"
+    )
+    print(
+        f"frames read {summary['frames_read']}, processed {summary['frames_processed']}, "
+        f"dropped (overrun) {summary['frames_dropped']}"
+    )
+    print(
+        f"RSS start {marks['start']:.1f} MB, after warm-up {warm:.1f} MB, "
+        f"end {marks['end']:.1f} MB; "
+        f"growth after warm-up {marks['end'] - warm:+.1f} MB (target < 10 MB)"
+    )
     e2e = summary["processing_ms"]["end_to_end"]
     print(f"latency median {e2e['median']} ms, p99 {e2e['p99']} ms")
     return 0

@@ -17,8 +17,9 @@ def default_config() -> Config:
     return load_config()
 
 
-def write_small_recording(path: Path, cfg: Config, n_frames: int = 5, video: str = "mkv",
-                          seed: int = 0) -> dict[str, object]:
+def write_small_recording(
+    path: Path, cfg: Config, n_frames: int = 5, video: str = "mkv", seed: int = 0
+) -> dict[str, object]:
     """A tiny recording with random frames, 50 Hz CAN and 20 Hz PTU; returns what was written."""
     rng = np.random.default_rng(seed)
     meta = meta_from_config(cfg)
@@ -31,8 +32,13 @@ def write_small_recording(path: Path, cfg: Config, n_frames: int = 5, video: str
             frames.append(img)
             times.append(t)
         for k in range(int(n_frames / 30.0 * 50) + 2):
-            m = can.Message(timestamp=100.0 + k * 0.02, arbitration_id=0x1A0, is_extended_id=False,
-                            data=bytes([k & 0xFF, 0x10, 0, 0]), channel="can0")
+            m = can.Message(
+                timestamp=100.0 + k * 0.02,
+                arbitration_id=0x1A0,
+                is_extended_id=False,
+                data=bytes([k & 0xFF, 0x10, 0, 0]),
+                channel="can0",
+            )
             w.write_can(m)
             msgs.append(m)
         for k in range(4):

@@ -1,4 +1,4 @@
-"""Configuration: defaults complete, user overrides, and each kind of error exits 2 naming file and key."""
+"""Configuration: defaults, user overrides, and each kind of error: exit 2 naming file and key."""
 
 from __future__ import annotations
 
@@ -17,7 +17,11 @@ def test_default_has_the_papers_values(default_config: Config) -> None:
     c = default_config
     assert c.detection.particles == 500
     assert c.flow.pyramid_levels == 2
-    assert (c.tracking.position_std_px, c.tracking.velocity_std_px, c.tracking.process_std_px) == (7, 2, 2)
+    assert (c.tracking.position_std_px, c.tracking.velocity_std_px, c.tracking.process_std_px) == (
+        7,
+        2,
+        2,
+    )
     assert (c.warning.ttc_caution_s, c.warning.ttc_warning_s) == (3.0, 2.0)
     assert Path(c.vehicle_can.dbc).is_file() and Path(c.hmi_can.dbc).is_file()
 
@@ -52,21 +56,23 @@ def test_relative_dbc_resolves_against_the_user_file(tmp_path: Path) -> None:
     [
         ("[detection]\nparticels = 3\n", "detection.particels", "unknown key"),
         ("[detectoin]\nparticles = 3\n", "detectoin", "unknown section"),
-        ("[detection]\nparticles = \"many\"\n", "detection.particles", "expected an integer"),
+        ('[detection]\nparticles = "many"\n', "detection.particles", "expected an integer"),
         ("[detection]\nparticles = 2.5\n", "detection.particles", "expected an integer"),
         ("[ptu]\nenabled = 1\n", "ptu.enabled", "expected true or false"),
         ("[detection]\nparticles = 0\n", "detection.particles", "out of range"),
         ("[camera]\nfx = -1.0\n", "camera.fx", "out of range"),
         ("[flow]\nfb_threshold_px = nan\n", "flow.fb_threshold_px", "NaN"),
-        ("[detection]\nlikelihood = \"angle\"\n", "detection.likelihood", "is not one of"),
-        ("[vehicle_can]\ndbc = \"nope.dbc\"\n", "vehicle_can.dbc", "file not found"),
+        ('[detection]\nlikelihood = "angle"\n', "detection.likelihood", "is not one of"),
+        ('[vehicle_can]\ndbc = "nope.dbc"\n', "vehicle_can.dbc", "file not found"),
         ("[warning]\nttc_warning_s = 4.0\n", "warning.ttc_warning_s", "must not exceed"),
         ("[probability_map]\ngauss_window_px = 30\n", "probability_map.gauss_window_px", "odd"),
-        ("[camera]\ndistortion = [0.1, \"x\"]\n", "camera.distortion", "list of numbers"),
+        ('[camera]\ndistortion = [0.1, "x"]\n', "camera.distortion", "list of numbers"),
         ("[detection\n", "", "invalid TOML"),
     ],
 )
-def test_errors_name_file_key_and_problem(tmp_path: Path, text: str, key: str, problem: str) -> None:
+def test_errors_name_file_key_and_problem(
+    tmp_path: Path, text: str, key: str, problem: str
+) -> None:
     f = tmp_path / "bad.toml"
     f.write_text(text)
     with pytest.raises(ConfigError) as info:
@@ -96,8 +102,21 @@ def test_with_overrides_validates(default_config: Config) -> None:
 def test_command_line_exits_2_with_one_line(tmp_path: Path) -> None:
     f = tmp_path / "bad.toml"
     f.write_text("[detection]\nparticles = -5\n")
-    r = subprocess.run([sys.executable, "-m", "appliance", "replay", str(tmp_path), "--out",
-                        str(tmp_path / "o"), "--config", str(f)], capture_output=True, text=True)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "appliance",
+            "replay",
+            str(tmp_path),
+            "--out",
+            str(tmp_path / "o"),
+            "--config",
+            str(f),
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 2, r.stderr
     assert r.stderr.count("\n") == 1 and "detection.particles" in r.stderr and str(f) in r.stderr
     assert "Traceback" not in r.stderr

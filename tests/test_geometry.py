@@ -21,8 +21,11 @@ def test_single_axis_euler_matches_rodrigues(axis: int, angle: float) -> None:
 def test_euler_order_is_z_y_x_and_round_trips() -> None:
     r = np.array([0.1, -0.2, 0.3])
     R = g.euler_to_matrix(r)
-    expected = cv2.Rodrigues(np.array([0, 0, 0.3]))[0] @ cv2.Rodrigues(np.array([0, -0.2, 0]))[0] \
+    expected = (
+        cv2.Rodrigues(np.array([0, 0, 0.3]))[0]
+        @ cv2.Rodrigues(np.array([0, -0.2, 0]))[0]
         @ cv2.Rodrigues(np.array([0.1, 0, 0]))[0]
+    )
     np.testing.assert_allclose(R, expected, atol=1e-12)
     np.testing.assert_allclose(g.matrix_to_euler(R), r, atol=1e-12)
     batch = np.array([[0.1, 0.2, 0.3], [0.0, 0.0, 0.0]])

@@ -1,4 +1,4 @@
-"""Drive recordings: round trip, python-can compatibility, and every kind of damage named by file and line."""
+"""Drive recordings: round trip, python-can compatibility, damage named by file and line."""
 
 from __future__ import annotations
 
@@ -35,7 +35,9 @@ def test_round_trip_is_identical(tmp_path: Path, default_config: Config, video: 
         assert not a.is_extended_id
     ptu = rec.ptu()
     assert ptu is not None
-    np.testing.assert_array_equal(np.column_stack([ptu.t, ptu.pan, ptu.tilt]), np.array(written["ptu"]))
+    np.testing.assert_array_equal(
+        np.column_stack([ptu.t, ptu.pan, ptu.tilt]), np.array(written["ptu"])
+    )
     assert rec.meta.camera.fx == default_config.camera.fx
     assert Path(rec.meta.can.dbc).parent == rec_dir.resolve()  # the DBC travels with the recording
     assert rec.validate() == len(written["can"])  # type: ignore[arg-type]
@@ -48,7 +50,9 @@ def test_frames_from_the_middle(tmp_path: Path, default_config: Config) -> None:
     np.testing.assert_array_equal(f.image, written["frames"][3])  # type: ignore[index]
 
 
-def test_can_log_is_candump_format_readable_by_python_can(tmp_path: Path, default_config: Config) -> None:
+def test_can_log_is_candump_format_readable_by_python_can(
+    tmp_path: Path, default_config: Config
+) -> None:
     write_small_recording(tmp_path / "r", default_config)
     first = (tmp_path / "r" / "can.log").read_text().splitlines()[0]
     assert first.startswith("(100.000000) can0 1A0#00100000")
@@ -58,7 +62,9 @@ def test_can_log_is_candump_format_readable_by_python_can(tmp_path: Path, defaul
 def test_meta_overrides_config(tmp_path: Path, default_config: Config) -> None:
     write_small_recording(tmp_path / "r", default_config)
     text = (tmp_path / "r" / "meta.toml").read_text().replace("fx = 700.0", "fx = 555.0")
-    (tmp_path / "r" / "meta.toml").write_text(text.replace('speed_unit = "km/h"', 'speed_unit = "m/s"'))
+    (tmp_path / "r" / "meta.toml").write_text(
+        text.replace('speed_unit = "km/h"', 'speed_unit = "m/s"')
+    )
     cfg = apply_meta(default_config, Recording(tmp_path / "r").meta)
     assert cfg.camera.fx == 555.0 and cfg.vehicle_can.speed_unit == "m/s"
 
@@ -76,11 +82,12 @@ def _damage(rec: Path, name: str, old: str, new: str) -> None:
         ("can.log", ("(100.020000)", "(99.000000)"), "can.log:2"),
         ("can.log", ("(100.040000) can0 1A0#", "(100.040000) can0 1A0#Z"), "can.log:3"),
         ("ptu.csv", ("100.1,", "oops,"), "ptu.csv:4"),
-        ("meta.toml", ("fx = 700.0", "fx = \"wide\""), "camera.fx"),
+        ("meta.toml", ("fx = 700.0", 'fx = "wide"'), "camera.fx"),
     ],
 )
-def test_damage_is_named_by_file_and_line(tmp_path: Path, default_config: Config, name: str,
-                                          damage: tuple[str, str], where: str) -> None:
+def test_damage_is_named_by_file_and_line(
+    tmp_path: Path, default_config: Config, name: str, damage: tuple[str, str], where: str
+) -> None:
     rec_dir = tmp_path / "r"
     write_small_recording(rec_dir, default_config)
     _damage(rec_dir, name, *damage)
@@ -109,7 +116,9 @@ def test_missing_files(tmp_path: Path, default_config: Config, missing: str) -> 
     assert missing.split(".")[0] in str(info.value)
 
 
-def test_truncated_recording_is_detected_not_shortened(tmp_path: Path, default_config: Config) -> None:
+def test_truncated_recording_is_detected_not_shortened(
+    tmp_path: Path, default_config: Config
+) -> None:
     rec_dir = tmp_path / "r"
     write_small_recording(rec_dir, default_config, n_frames=8)
     # a killed recorder: frames.csv has rows for frames the video never got

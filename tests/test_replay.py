@@ -1,4 +1,4 @@
-"""Replay: the pipeline on a recording, outputs in the spec's format, deterministic, bad input exits 2."""
+"""Replay: the pipeline on a recording, outputs per spec, deterministic, bad input exits 2."""
 
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ from appliance.runtime.outputs import EGOMOTION_HEADER
 
 
 def write_textured_drive(path: Path, cfg: Config, n: int = 12, speed_kmh: float = 36.0) -> None:
-    """A short drive over a static textured plane (image shifts = camera motion), real vehicle CAN."""
+    """A short drive over a static textured plane (image shifts), with real vehicle CAN frames."""
     rng = np.random.default_rng(7)
     base = cv2.GaussianBlur((rng.random((600, 800)) * 255).astype(np.uint8), (0, 0), 1.5)
     db = cantools.database.load_file(cfg.vehicle_can.dbc)
@@ -29,13 +29,25 @@ def write_textured_drive(path: Path, cfg: Config, n: int = 12, speed_kmh: float 
     with RecordingWriter(path, meta_from_config(cfg)) as w:
         for i in range(n):
             t = 50.0 + i / 30.0
-            w.write_frame(np.ascontiguousarray(base[40 + i: 520 + i, 60: 700]), t)
+            w.write_frame(np.ascontiguousarray(base[40 + i : 520 + i, 60:700]), t)
         for k in range(int(n / 30.0 * 50) + 3):
             t = 50.0 - 0.02 + k * 0.02
-            w.write_can(can.Message(timestamp=t, arbitration_id=spd.frame_id, is_extended_id=False,
-                                    data=spd.encode({"SPEED": speed_kmh, "COUNTER": k % 16})))
-            w.write_can(can.Message(timestamp=t + 0.001, arbitration_id=yaw.frame_id, is_extended_id=False,
-                                    data=yaw.encode({"YAW_RATE": 0.0, "COUNTER": k % 16})))
+            w.write_can(
+                can.Message(
+                    timestamp=t,
+                    arbitration_id=spd.frame_id,
+                    is_extended_id=False,
+                    data=spd.encode({"SPEED": speed_kmh, "COUNTER": k % 16}),
+                )
+            )
+            w.write_can(
+                can.Message(
+                    timestamp=t + 0.001,
+                    arbitration_id=yaw.frame_id,
+                    is_extended_id=False,
+                    data=yaw.encode({"YAW_RATE": 0.0, "COUNTER": k % 16}),
+                )
+            )
 
 
 @pytest.fixture(scope="module")
@@ -60,8 +72,15 @@ def test_outputs_follow_the_spec(drive: Path, tmp_path: Path, default_config: Co
     # the camera moved forward: the refined and prior epipoles are known after the first frame
     assert ego[5][2] != "" and ego[5][7] != ""
     s = json.loads((out / "summary.json").read_text())
-    for key in ("frames_read", "frames_processed", "frames_dropped", "processing_ms", "warnings_issued",
-                "version", "config_digest"):
+    for key in (
+        "frames_read",
+        "frames_processed",
+        "frames_dropped",
+        "processing_ms",
+        "warnings_issued",
+        "version",
+        "config_digest",
+    ):
         assert key in s
     assert s["frames_processed"] == 12 and s["processing_ms"]["total"]["median"] > 0
     assert (out / "warnings.jsonl").exists()
@@ -88,8 +107,9 @@ def test_two_replays_are_identical(drive: Path, tmp_path: Path, default_config: 
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "appliance", *args], capture_output=True, text=True,
-                          timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", "appliance", *args], capture_output=True, text=True, timeout=300
+    )
 
 
 def test_cli_replay_and_corrupt_recording(drive: Path, tmp_path: Path) -> None:
@@ -117,12 +137,21 @@ def test_unknown_signal_in_recording_meta_exits_2(drive: Path, tmp_path: Path) -
     meta = (bad / "meta.toml").read_text().replace("YAW_RATE.YAW_RATE", "YAW_RATE.YAWRATE")
     (bad / "meta.toml").write_text(meta)
     r = _cli("replay", str(bad), "--out", str(tmp_path / "o"))
-    assert r.returncode == 2 and "YAW_RATE.YAWRATE" in r.stderr and "vehicle.dbc" in r.stderr, r.stderr
+    assert r.returncode == 2 and "YAW_RATE.YAWRATE" in r.stderr and "vehicle.dbc" in r.stderr, (
+        r.stderr
+    )
 
 
 def test_annotated_video(drive: Path, tmp_path: Path) -> None:
-    r = _cli("replay", str(drive), "--out", str(tmp_path / "o"), "--video", str(tmp_path / "v.avi"),
-             "--no-progress")
+    r = _cli(
+        "replay",
+        str(drive),
+        "--out",
+        str(tmp_path / "o"),
+        "--video",
+        str(tmp_path / "v.avi"),
+        "--no-progress",
+    )
     assert r.returncode == 0, r.stderr
     cap = cv2.VideoCapture(str(tmp_path / "v.avi"))
     n = 0

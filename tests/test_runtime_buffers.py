@@ -95,7 +95,11 @@ def test_sensor_sample_flags() -> None:
     s.add_yaw_rate(0.0, 0.1)
     s.add_ptu(0.0, 0.2, -0.1)
     x = s.sample(0.05)
-    assert x.can_valid and x.ptu_valid and (x.speed_m_s, x.yaw_rate_rad_s, x.pan_rad) == (10.0, 0.1, 0.2)
+    assert (
+        x.can_valid
+        and x.ptu_valid
+        and (x.speed_m_s, x.yaw_rate_rad_s, x.pan_rad) == (10.0, 0.1, 0.2)
+    )
     late = s.sample(1.0)
     assert not late.can_valid and not late.ptu_valid and late.speed_m_s == 10.0  # held, flagged
 

@@ -44,7 +44,9 @@ def _at(delay: float, fn: object) -> threading.Timer:
     return t
 
 
-def test_faults_are_flagged_and_recovered(static_drive: Path, tmp_path: Path, default_config: Config) -> None:
+def test_faults_are_flagged_and_recovered(
+    static_drive: Path, tmp_path: Path, default_config: Config
+) -> None:
     rec = Recording(static_drive, defaults=default_config)
     cfg = apply_meta(default_config, rec.meta)
     events: list[str] = []
@@ -53,15 +55,24 @@ def test_faults_are_flagged_and_recovered(static_drive: Path, tmp_path: Path, de
     def inject(rig: LiveRig) -> None:
         assert rig.can_player is not None and rig.ptu_simulator is not None
         sim = rig.ptu_simulator
-        timers.extend([
-            _at(1.0, lambda: rig.camera.interrupt(0.8)),
-            _at(2.2, lambda: rig.can_player.mute(0.6)),  # type: ignore[union-attr]
-            _at(3.0, sim.disconnect),
-            _at(3.6, sim.reconnect),
-        ])
+        timers.extend(
+            [
+                _at(1.0, lambda: rig.camera.interrupt(0.8)),
+                _at(2.2, lambda: rig.can_player.mute(0.6)),  # type: ignore[union-attr]
+                _at(3.0, sim.disconnect),
+                _at(3.6, sim.reconnect),
+            ]
+        )
 
-    stats, summary = play_live(rec, cfg, tmp_path / "run", Buses.private_virtual(), ptu_simulator=True,
-                               on_event=events.append, on_start=inject)
+    stats, summary = play_live(
+        rec,
+        cfg,
+        tmp_path / "run",
+        Buses.private_virtual(),
+        ptu_simulator=True,
+        on_event=events.append,
+        on_start=inject,
+    )
     for t in timers:
         t.cancel()
     changes = stats.status_changes
@@ -79,7 +90,9 @@ def test_faults_are_flagged_and_recovered(static_drive: Path, tmp_path: Path, de
     assert stats.frames_read < rec.n_frames
 
 
-def test_demo_run_recorded_replays_to_the_same_warnings(tmp_path: Path, default_config: Config) -> None:
+def test_demo_run_recorded_replays_to_the_same_warnings(
+    tmp_path: Path, default_config: Config
+) -> None:
     # the car is warned about well before the impact (the pedestrian only late, behind a parked car)
     src = simulate("car_crossing_intersection", tmp_path / "sim", seed=1, duration=6.0)
     rec = Recording(src, defaults=default_config)
@@ -134,10 +147,15 @@ def test_sigterm_stops_the_service_within_2_s(tmp_path: Path) -> None:
         f'[camera]\ndevice = "{tmp_path}/no-camera"\n[ptu]\nport = "{tmp_path}/no-ptu"\n'
         '[vehicle_can]\ninterface = "virtual"\nchannel = "cw-sigterm"\n'
         '[hmi_can]\ninterface = "virtual"\nchannel = "cw-sigterm-hmi"\n'
-        f'[runtime]\nout_dir = "{tmp_path}/out"\n')
+        f'[runtime]\nout_dir = "{tmp_path}/out"\n'
+    )
     env = dict(os.environ, PYTHONUNBUFFERED="1")
-    proc = subprocess.Popen([sys.executable, "-m", "appliance", "run", "--config", str(cfg)],
-                            stderr=subprocess.PIPE, text=True, env=env)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "appliance", "run", "--config", str(cfg)],
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
     assert proc.stderr is not None
     # wait until it runs (it reports the missing camera once), then stop it
     for line in proc.stderr:
@@ -155,7 +173,9 @@ def test_sigterm_stops_the_service_within_2_s(tmp_path: Path) -> None:
     assert summary["frames_processed"] == 0
 
 
-def test_recorder_rotates_by_duration_and_each_piece_replays(tmp_path: Path, default_config: Config) -> None:
+def test_recorder_rotates_by_duration_and_each_piece_replays(
+    tmp_path: Path, default_config: Config
+) -> None:
     """run --record: a long drive becomes several recordings, each valid on its own."""
     import can as pycan
     import numpy as np
@@ -168,8 +188,14 @@ def test_recorder_rotates_by_duration_and_each_piece_replays(tmp_path: Path, def
     rng = np.random.default_rng(0)
     for i in range(75):  # 2.5 s at 30 frames/s
         t = 100.0 + i / 30.0
-        rec.add_can(pycan.Message(timestamp=t - 0.01, arbitration_id=0x1A0, is_extended_id=False,
-                                  data=b"\x10\x0e\x00\x00"))
+        rec.add_can(
+            pycan.Message(
+                timestamp=t - 0.01,
+                arbitration_id=0x1A0,
+                is_extended_id=False,
+                data=b"\x10\x0e\x00\x00",
+            )
+        )
         rec.add_ptu(PtuSample(t - 0.005, 0.0, 0.0))
         rec.add_frame(CameraFrame(i, t, rng.integers(0, 255, (480, 640), dtype=np.uint8)))
     rec.stop()

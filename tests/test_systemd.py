@@ -38,9 +38,17 @@ def test_systemd_analyze_verify_is_clean(tmp_path: Path) -> None:
     if not exe.exists():
         pytest.skip(f"console script not installed next to {sys.executable}")
     unit = tmp_path / "collision-warning.service"
-    unit.write_text(UNIT.read_text().replace("/opt/collision-warning/.venv/bin/collision-warning", str(exe)))
-    r = subprocess.run(["systemd-analyze", "verify", str(unit)], capture_output=True, text=True, timeout=60)
-    complaints = [ln for ln in (r.stdout + r.stderr).splitlines() if unit.name in ln or "collision-warning" in ln]
+    unit.write_text(
+        UNIT.read_text().replace("/opt/collision-warning/.venv/bin/collision-warning", str(exe))
+    )
+    r = subprocess.run(
+        ["systemd-analyze", "verify", str(unit)], capture_output=True, text=True, timeout=60
+    )
+    complaints = [
+        ln
+        for ln in (r.stdout + r.stderr).splitlines()
+        if unit.name in ln or "collision-warning" in ln
+    ]
     assert r.returncode == 0 and not complaints, r.stdout + r.stderr
 
 

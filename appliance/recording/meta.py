@@ -62,14 +62,24 @@ def apply_meta(cfg: Config, meta: RecordingMeta) -> Config:
     return dataclasses.replace(
         cfg,
         camera=dataclasses.replace(
-            cfg.camera, width=cam.width, height=cam.height, fx=cam.fx, fy=cam.fy,
-            cx=cam.cx, cy=cam.cy, distortion=tuple(cam.distortion),
+            cfg.camera,
+            width=cam.width,
+            height=cam.height,
+            fx=cam.fx,
+            fy=cam.fy,
+            cx=cam.cx,
+            cy=cam.cy,
+            distortion=tuple(cam.distortion),
         ),
         mount=meta.mount,
         vehicle_can=dataclasses.replace(
-            cfg.vehicle_can, dbc=meta.can.dbc, speed=meta.can.speed,
-            speed_unit=meta.can.speed_unit, yaw_rate=meta.can.yaw_rate,
-            yaw_rate_unit=meta.can.yaw_rate_unit, yaw_rate_sign=meta.can.yaw_rate_sign,
+            cfg.vehicle_can,
+            dbc=meta.can.dbc,
+            speed=meta.can.speed,
+            speed_unit=meta.can.speed_unit,
+            yaw_rate=meta.can.yaw_rate,
+            yaw_rate_unit=meta.can.yaw_rate_unit,
+            yaw_rate_sign=meta.can.yaw_rate_sign,
         ),
     )
 
@@ -98,8 +108,15 @@ def read_meta(path: Path, defaults: Config | None = None) -> RecordingMeta:
             raise RecordingError(path, f"{name}: must be a table")
         return t
 
-    def number(t: dict[str, Any], sect: str, key: str, *, positive: bool = False,
-               integer: bool = False, default: float | None = None) -> Any:
+    def number(
+        t: dict[str, Any],
+        sect: str,
+        key: str,
+        *,
+        positive: bool = False,
+        integer: bool = False,
+        default: float | None = None,
+    ) -> Any:
         if key not in t:
             if default is not None:
                 return default
@@ -115,9 +132,11 @@ def read_meta(path: Path, defaults: Config | None = None) -> RecordingMeta:
 
     cam = table("camera")
     dist = cam.get("distortion", [0.0, 0.0, 0.0, 0.0, 0.0])
-    if not isinstance(dist, list) or not all(
-        isinstance(d, (int, float)) and not isinstance(d, bool) for d in dist
-    ) or len(dist) not in (4, 5, 8, 12, 14):
+    if (
+        not isinstance(dist, list)
+        or not all(isinstance(d, (int, float)) and not isinstance(d, bool) for d in dist)
+        or len(dist) not in (4, 5, 8, 12, 14)
+    ):
         raise RecordingError(path, "camera.distortion: expected 4, 5, 8, 12 or 14 numbers")
     camera = PinholeCamera(
         width=number(cam, "camera", "width", positive=True, integer=True),

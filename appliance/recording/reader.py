@@ -68,9 +68,13 @@ def _read_csv(path: Path, header: list[str], required: bool = True) -> list[tupl
         try:
             first = next(reader)
         except StopIteration:
-            raise RecordingError(path, f"empty; expected the header {','.join(header)}", 1) from None
+            raise RecordingError(
+                path, f"empty; expected the header {','.join(header)}", 1
+            ) from None
         if [h.strip() for h in first] != header:
-            raise RecordingError(path, f"header {','.join(first)!r}, expected {','.join(header)!r}", 1)
+            raise RecordingError(
+                path, f"header {','.join(first)!r}, expected {','.join(header)!r}", 1
+            )
         rows = []
         for row in reader:
             if not row or all(not c.strip() for c in row):
@@ -101,7 +105,9 @@ class Recording:
     def __init__(self, path: str | Path, defaults: Config | None = None) -> None:
         self.path = Path(path)
         if not self.path.is_dir():
-            raise RecordingError(self.path, "not a recording directory (not found or not a directory)")
+            raise RecordingError(
+                self.path, "not a recording directory (not found or not a directory)"
+            )
         self.meta: RecordingMeta = read_meta(self.path / "meta.toml", defaults)
         self.frame_times = self._read_frame_times()
         self.video_path: Path | None = None
@@ -132,7 +138,9 @@ class Recording:
         for i, (line, row) in enumerate(rows):
             idx, t = _floats(path, line, row, 2)
             if idx != i:
-                raise RecordingError(path, f"frame index {row[0]} out of sequence, expected {i}", line)
+                raise RecordingError(
+                    path, f"frame index {row[0]} out of sequence, expected {i}", line
+                )
             if i and t <= times[i - 1]:
                 raise RecordingError(path, f"non-monotonic time {t!r} after {times[i - 1]!r}", line)
             times[i] = t
@@ -153,7 +161,9 @@ class Recording:
         cap = cv2.VideoCapture(str(self.video_path))
         try:
             if not cap.isOpened():
-                raise RecordingError(self.video_path, "cannot be opened (unreadable or truncated video)")
+                raise RecordingError(
+                    self.video_path, "cannot be opened (unreadable or truncated video)"
+                )
             count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
         finally:
             cap.release()
@@ -164,9 +174,15 @@ class Recording:
                 "(a partially written recording?)",
             )
 
-    def _check_image(self, image: NDArray[np.uint8] | None, where: Path, index: int) -> NDArray[np.uint8]:
+    def _check_image(
+        self, image: NDArray[Any] | None, where: Path, index: int
+    ) -> NDArray[np.uint8]:
         if image is None:
             raise RecordingError(where, f"frame {index} unreadable")
+        if image.dtype != np.uint8:
+            raise RecordingError(
+                where, f"frame {index} is {image.dtype}, expected 8-bit gray or BGR"
+            )
         if image.ndim == 3:
             image = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
         h, w = image.shape[:2]
@@ -175,7 +191,7 @@ class Recording:
             raise RecordingError(
                 where, f"frame {index} is {w}x{h}, meta.toml says {cam.width}x{cam.height}"
             )
-        return np.ascontiguousarray(image)
+        return np.ascontiguousarray(image, dtype=np.uint8)
 
     def frames(self, start: int = 0) -> Iterator[Frame]:
         """Stream the frames as 8-bit gray ``Frame`` objects, from index ``start``."""
@@ -232,12 +248,16 @@ class Recording:
                 except StopIteration:
                     break
                 except (ValueError, IndexError) as exc:
-                    raise RecordingError(path, f"unreadable CAN frame ({exc})", lines.line) from None
+                    raise RecordingError(
+                        path, f"unreadable CAN frame ({exc})", lines.line
+                    ) from None
                 if not math.isfinite(msg.timestamp):
                     raise RecordingError(path, "non-finite timestamp", lines.line)
                 if msg.timestamp < last:
                     raise RecordingError(
-                        path, f"non-monotonic timestamp {msg.timestamp:.6f} after {last:.6f}", lines.line
+                        path,
+                        f"non-monotonic timestamp {msg.timestamp:.6f} after {last:.6f}",
+                        lines.line,
                     )
                 last = msg.timestamp
                 yield msg

@@ -35,8 +35,9 @@ class RecordingWriter:
     :param fps: nominal frame rate stored in the video container.
     """
 
-    def __init__(self, path: str | Path, meta: RecordingMeta, video: str = "mkv",
-                 fps: float = 30.0) -> None:
+    def __init__(
+        self, path: str | Path, meta: RecordingMeta, video: str = "mkv", fps: float = 30.0
+    ) -> None:
         if video not in VIDEO_FORMATS:
             raise ValueError(f"video must be one of {', '.join(VIDEO_FORMATS)}")
         self.path = Path(path)
@@ -72,7 +73,9 @@ class RecordingWriter:
             raise ValueError(f"frame time {t!r} not after the previous {self._last_t!r}")
         h, w = image.shape[:2]
         if (w, h) != (self.meta.camera.width, self.meta.camera.height):
-            raise ValueError(f"frame is {w}x{h}, meta says {self.meta.camera.width}x{self.meta.camera.height}")
+            raise ValueError(
+                f"frame is {w}x{h}, meta says {self.meta.camera.width}x{self.meta.camera.height}"
+            )
         index = self.n_frames
         if self.video == "png":
             p = self.path / "frames" / f"{index:06d}.png"
@@ -84,13 +87,18 @@ class RecordingWriter:
                 name, fourcc = VIDEO_FORMATS[self.video]
                 assert name is not None and fourcc is not None
                 self._vw = cv2.VideoWriter(
-                    str(self.path / name), cv2.VideoWriter_fourcc(*fourcc), self.fps, (w, h),
+                    str(self.path / name),
+                    cv2.VideoWriter.fourcc(*fourcc),
+                    self.fps,
+                    (w, h),
                     isColor=image.ndim == 3,
                 )
                 if not self._vw.isOpened():
                     raise RecordingError(self.path / name, f"OpenCV cannot write {fourcc} video")
             self._vw.write(image)
-            self.video_bytes += image.nbytes // 3  # estimate; FFV1 is about 1/3 of raw on camera images
+            self.video_bytes += (
+                image.nbytes // 3
+            )  # estimate; FFV1 is about 1/3 of raw on camera images
         self._frames.writerow([index, repr(float(t))])
         self._frames_fh.flush()
         self._last_t = t
@@ -138,6 +146,10 @@ class RecordingWriter:
     def __enter__(self) -> RecordingWriter:
         return self
 
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> None:
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
         self.close()

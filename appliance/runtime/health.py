@@ -39,8 +39,10 @@ class HealthStatus:
 
     def describe(self) -> str:
         faults = ", ".join(self.faults.names()) or "none"
-        return (f"{self.state_name}; faults: {faults}; {self.frame_rate:.1f} frames/s; "
-                f"latency {self.latency_ms:.1f} ms")
+        return (
+            f"{self.state_name}; faults: {faults}; {self.frame_rate:.1f} frames/s; "
+            f"latency {self.latency_ms:.1f} ms"
+        )
 
 
 def state_of(started: bool, faults: Faults) -> int:
@@ -60,7 +62,9 @@ class Health:
         self.status = HealthStatus(STARTING, Faults(), 0.0, 0.0)
         self.changes = 0
 
-    def update(self, started: bool, faults: Faults, frame_rate: float, latency_ms: float) -> str | None:
+    def update(
+        self, started: bool, faults: Faults, frame_rate: float, latency_ms: float
+    ) -> str | None:
         """New status; returns a one-line description when state or faults changed, else None."""
         new = HealthStatus(state_of(started, faults), faults, frame_rate, latency_ms)
         changed = (new.state, new.faults) != (self.status.state, self.status.faults)

@@ -22,8 +22,19 @@ from appliance import __version__
 from appliance.messages import EgoMotion, StepOutput, TrackReport, WarningEvent
 
 EGOMOTION_HEADER = [
-    "frame", "t", "epipole_u", "epipole_v", "rot_x", "rot_y", "rot_z",
-    "prior_epipole_u", "prior_epipole_v", "prior_rot_x", "prior_rot_y", "prior_rot_z", "inliers",
+    "frame",
+    "t",
+    "epipole_u",
+    "epipole_v",
+    "rot_x",
+    "rot_y",
+    "rot_z",
+    "prior_epipole_u",
+    "prior_epipole_v",
+    "prior_rot_x",
+    "prior_rot_y",
+    "prior_rot_z",
+    "inliers",
 ]
 
 
@@ -71,8 +82,21 @@ def egomotion_row(frame: int, t: float, ego: EgoMotion) -> list[str]:
     pe = ego.prior_epipole_px or (None, None)
     r = np.asarray(ego.rotation, float)
     pr = np.asarray(ego.prior_rotation, float)
-    return [str(frame), repr(float(t)), fmt(e[0]), fmt(e[1]), fmt(r[0]), fmt(r[1]), fmt(r[2]),
-            fmt(pe[0]), fmt(pe[1]), fmt(pr[0]), fmt(pr[1]), fmt(pr[2]), str(int(ego.inliers))]
+    return [
+        str(frame),
+        repr(float(t)),
+        fmt(e[0]),
+        fmt(e[1]),
+        fmt(r[0]),
+        fmt(r[1]),
+        fmt(r[2]),
+        fmt(pe[0]),
+        fmt(pe[1]),
+        fmt(pr[0]),
+        fmt(pr[1]),
+        fmt(pr[2]),
+        str(int(ego.inliers)),
+    ]
 
 
 def timing_stats(values_ms: Sequence[float]) -> dict[str, float | None]:
@@ -80,8 +104,12 @@ def timing_stats(values_ms: Sequence[float]) -> dict[str, float | None]:
     if not values_ms:
         return {"median": None, "p99": None, "max": None, "count": 0}
     a = np.asarray(values_ms, float)
-    return {"median": round(float(np.median(a)), 3), "p99": round(float(np.percentile(a, 99)), 3),
-            "max": round(float(a.max()), 3), "count": int(a.size)}
+    return {
+        "median": round(float(np.median(a)), 3),
+        "p99": round(float(np.percentile(a, 99)), 3),
+        "max": round(float(a.max()), 3),
+        "count": int(a.size),
+    }
 
 
 class RunOutputs:
@@ -107,7 +135,11 @@ class RunOutputs:
     def write_step(self, out: StepOutput) -> None:
         """One processed frame: its egomotion row, its tracks row and any warning changes."""
         self._ego.writerow(egomotion_row(out.frame, out.t, out.ego))
-        row = {"t": float(out.t), "frame": int(out.frame), "tracks": [track_row(tr) for tr in out.tracks]}
+        row = {
+            "t": float(out.t),
+            "frame": int(out.frame),
+            "tracks": [track_row(tr) for tr in out.tracks],
+        }
         self._tracks.write(json.dumps(row) + "\n")
         self.write_warnings(out.warnings)
 
@@ -135,8 +167,12 @@ class RunOutputs:
             self._can.file.flush()
 
     def write_summary(self, summary: dict[str, Any]) -> Path:
-        body = {"version": __version__, "warnings_issued": self.warnings_issued,
-                "can_frames_sent": self.can_frames, **summary}
+        body = {
+            "version": __version__,
+            "warnings_issued": self.warnings_issued,
+            "can_frames_sent": self.can_frames,
+            **summary,
+        }
         path = self.dir / "summary.json"
         path.write_text(json.dumps(body, indent=2, sort_keys=True) + "\n")
         return path
@@ -154,6 +190,10 @@ class RunOutputs:
     def __enter__(self) -> RunOutputs:
         return self
 
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> None:
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
         self.close()

@@ -23,12 +23,12 @@ from appliance.config import Config
 from appliance.errors import RuntimeFailure
 from appliance.recording import Recording
 from appliance.runtime.outputs import RunOutputs
+from appliance.runtime.recorder import LiveRecorder
 from appliance.runtime.sd_notify import SdNotifier
 from appliance.runtime.sources import CanPlayer, PlaybackClock, PtuPlayer, RecordingSource
 from appliance.runtime.supervisor import LiveInputs, RunStats, Supervisor, run_summary
 from appliance.runtime.wiring import hmi_codec, vehicle_decoder
 from drivers.hmi_can import HmiCanWriter
-from appliance.runtime.recorder import LiveRecorder
 from drivers.ptu import PtuDriver, PtuSample
 from drivers.ptu_sim import PtuSimulator
 from drivers.vehicle_can import VehicleCanReader
@@ -64,16 +64,25 @@ class Buses:
 
     @staticmethod
     def from_config(cfg: Config) -> Buses:
-        return Buses((cfg.vehicle_can.interface, cfg.vehicle_can.channel),
-                     (cfg.hmi_can.interface, cfg.hmi_can.channel))
+        return Buses(
+            (cfg.vehicle_can.interface, cfg.vehicle_can.channel),
+            (cfg.hmi_can.interface, cfg.hmi_can.channel),
+        )
 
 
-def play_live(rec: Recording, cfg: Config, out_dir: str | Path, buses: Buses, *,
-              ptu_simulator: bool = False, play_can: bool = True,
-              on_event: Callable[[str], None] | None = None,
-              notifier: SdNotifier | None = None,
-              on_start: Callable[[LiveRig], None] | None = None,
-              recorder: LiveRecorder | None = None) -> tuple[RunStats, dict[str, Any]]:
+def play_live(
+    rec: Recording,
+    cfg: Config,
+    out_dir: str | Path,
+    buses: Buses,
+    *,
+    ptu_simulator: bool = False,
+    play_can: bool = True,
+    on_event: Callable[[str], None] | None = None,
+    notifier: SdNotifier | None = None,
+    on_start: Callable[[LiveRig], None] | None = None,
+    recorder: LiveRecorder | None = None,
+) -> tuple[RunStats, dict[str, Any]]:
     """Play ``rec`` live; returns the run's statistics and its ``summary.json`` content.
 
     With ``recorder`` the run also records what the drivers delivered (``run --record``).
@@ -97,23 +106,44 @@ def play_live(rec: Recording, cfg: Config, out_dir: str | Path, buses: Buses, *,
     players: list[Any] = []
     try:
         vehicle = VehicleCanReader(
-            vehicle_decoder(cfg), interface=buses.vehicle[0], channel=buses.vehicle[1],
-            stale_s=cfg.vehicle_can.stale_s / rate, reopen_min_s=cfg.vehicle_can.reopen_min_s,
-            reopen_max_s=cfg.vehicle_can.reopen_max_s, sink=sup.can_ring.put,
-            raw_sink=recorder.add_can if recorder is not None else None).start()
+            vehicle_decoder(cfg),
+            interface=buses.vehicle[0],
+            channel=buses.vehicle[1],
+            stale_s=cfg.vehicle_can.stale_s / rate,
+            reopen_min_s=cfg.vehicle_can.reopen_min_s,
+            reopen_max_s=cfg.vehicle_can.reopen_max_s,
+            sink=sup.can_ring.put,
+            raw_sink=recorder.add_can if recorder is not None else None,
+        ).start()
         if play_can and not vehicle.wait_stats(lambda s: s.opens >= 1, 5.0):
-            raise RuntimeFailure(f"vehicle CAN {buses.vehicle[0]}:{buses.vehicle[1]} did not open: "
-                                 f"{vehicle.stats.last_error}")
-        hmi = HmiCanWriter(hmi_codec(cfg, buses.hmi[1]), interface=buses.hmi[0], channel=buses.hmi[1],
-                           period_s=cfg.hmi_can.period_s, tx_queue=cfg.hmi_can.tx_queue,
-                           log_path=out / "can_out.log").start()
+            raise RuntimeFailure(
+                f"vehicle CAN {buses.vehicle[0]}:{buses.vehicle[1]} did not open: "
+                f"{vehicle.stats.last_error}"
+            )
+        hmi = HmiCanWriter(
+            hmi_codec(cfg, buses.hmi[1]),
+            interface=buses.hmi[0],
+            channel=buses.hmi[1],
+            period_s=cfg.hmi_can.period_s,
+            tx_queue=cfg.hmi_can.tx_queue,
+            log_path=out / "can_out.log",
+        ).start()
         if ptu_simulator:
             sim = PtuSimulator().start()
             p = cfg.ptu
-            ptu = PtuDriver(sim.port, baud=p.baud, pan_sign=p.pan_sign, tilt_sign=p.tilt_sign,
-                            pan_offset_rad=p.pan_offset_rad, tilt_offset_rad=p.tilt_offset_rad,
-                            poll_hz=p.poll_hz, timeout_s=p.timeout_s, retries=p.retries,
-                            speed_rad_s=p.speed_rad_s, sink=ptu_sink).start()
+            ptu = PtuDriver(
+                sim.port,
+                baud=p.baud,
+                pan_sign=p.pan_sign,
+                tilt_sign=p.tilt_sign,
+                pan_offset_rad=p.pan_offset_rad,
+                tilt_offset_rad=p.tilt_offset_rad,
+                poll_hz=p.poll_hz,
+                timeout_s=p.timeout_s,
+                retries=p.retries,
+                speed_rad_s=p.speed_rad_s,
+                sink=ptu_sink,
+            ).start()
         clock = PlaybackClock(t0_rec, time.monotonic() + START_LEAD_S, rate)
         if recorder is not None:
             recorder.to_recording = clock.recording
@@ -126,12 +156,19 @@ def play_live(rec: Recording, cfg: Config, out_dir: str | Path, buses: Buses, *,
             players.append(PtuPlayer(track, ptu_sink, clock).start())
         if sim is not None:
             players.append(sim)
-        camera = RecordingSource(rec, clock, capacity=cfg.runtime.frame_buffer,
-                                 stale_s=cfg.camera.stale_s / rate)
-        inputs = LiveInputs(camera=camera, vehicle=vehicle, ptu=ptu, hmi=hmi, players=players,
-                            to_recording=clock.recording,
-                            ptu_enabled=ptu_simulator or track is not None,
-                            finished=camera.finished)
+        camera = RecordingSource(
+            rec, clock, capacity=cfg.runtime.frame_buffer, stale_s=cfg.camera.stale_s / rate
+        )
+        inputs = LiveInputs(
+            camera=camera,
+            vehicle=vehicle,
+            ptu=ptu,
+            hmi=hmi,
+            players=players,
+            to_recording=clock.recording,
+            ptu_enabled=ptu_simulator or track is not None,
+            finished=camera.finished,
+        )
         if on_start is not None:
             on_start(LiveRig(sup, camera, can_player, sim, ptu, clock))
         try:
@@ -149,22 +186,34 @@ def play_live(rec: Recording, cfg: Config, out_dir: str | Path, buses: Buses, *,
             pl.stop()
         if player_bus is not None:
             player_bus.shutdown()
-    summary = run_summary(stats, cfg, {"warnings_issued": sum(1 for w in stats.warnings if w.level > 0)})
+    summary = run_summary(
+        stats, cfg, {"warnings_issued": sum(1 for w in stats.warnings if w.level > 0)}
+    )
     outputs.write_summary(summary)
     outputs.close()
     return stats, summary
 
 
-def replay_realtime(rec: Recording, cfg: Config, out_dir: Path, video: str | None = None,
-                    buses: Buses | None = None) -> RunStats:
+def replay_realtime(
+    rec: Recording, cfg: Config, out_dir: Path, video: str | None = None, buses: Buses | None = None
+) -> RunStats:
     """``replay --realtime``: private virtual buses unless the configuration names real ones."""
     if video:
         from appliance.errors import UsageError
 
-        raise UsageError("--video is only available without --realtime (replay the same recording "
-                         "as fast as possible to draw it)")
-    stats, summary = play_live(rec, cfg, out_dir, buses or Buses.private_virtual(),
-                               on_event=lambda line: print(line, flush=True))
-    print(f"replayed {stats.frames_processed} of {stats.frames_read} frames of {rec.path} in real time "
-          f"-> {out_dir}")
+        raise UsageError(
+            "--video is only available without --realtime (replay the same recording "
+            "as fast as possible to draw it)"
+        )
+    stats, summary = play_live(
+        rec,
+        cfg,
+        out_dir,
+        buses or Buses.private_virtual(),
+        on_event=lambda line: print(line, flush=True),
+    )
+    print(
+        f"replayed {stats.frames_processed} of {stats.frames_read} frames of {rec.path} "
+        f"in real time -> {out_dir}"
+    )
     return stats

@@ -47,7 +47,9 @@ class LiveRecorder:
         self.cfg = cfg
         self.rotate_s = cfg.runtime.record_rotate_s
         self.rotate_bytes = cfg.runtime.record_rotate_mb * 1e6
-        self._queue: queue.Queue[CameraFrame | can.Message | PtuSample | None] = queue.Queue(queue_size)
+        self._queue: queue.Queue[CameraFrame | can.Message | PtuSample | None] = queue.Queue(
+            queue_size
+        )
         self._writer: RecordingWriter | None = None
         self._segment_t0: float | None = None
         self._thread = threading.Thread(target=self._run, name="recorder", daemon=True)
@@ -85,11 +87,15 @@ class LiveRecorder:
     @property
     def stats(self) -> RecorderStats:
         n = self._n
-        return RecorderStats(len(self.paths), n["frames"], n["can"], n["ptu"], n["dropped"], n["errors"])
+        return RecorderStats(
+            len(self.paths), n["frames"], n["can"], n["ptu"], n["dropped"], n["errors"]
+        )
 
     # writer thread
     def _run(self) -> None:
-        pending: list[can.Message | PtuSample] = []  # sensor data before the first frame of a segment
+        pending: list[
+            can.Message | PtuSample
+        ] = []  # sensor data before the first frame of a segment
         while True:
             item = self._queue.get()
             if item is None:
@@ -103,21 +109,27 @@ class LiveRecorder:
                     del pending[:-2000]
                 else:
                     self._sensor(item)
-            except Exception as exc:  # disk full, permissions: count, log, keep the appliance running
+            except (
+                Exception
+            ) as exc:  # disk full, permissions: count, log, keep the appliance running
                 self._n["errors"] += 1
                 log.error("recorder: %s: %s", type(exc).__name__, exc)
         self._close()
 
     def _frame(self, frame: CameraFrame, pending: list[can.Message | PtuSample]) -> None:
         w = self._writer
-        if w is not None and self._segment_t0 is not None and (
-                frame.t - self._segment_t0 >= self.rotate_s or w.video_bytes >= self.rotate_bytes):
+        if (
+            w is not None
+            and self._segment_t0 is not None
+            and (frame.t - self._segment_t0 >= self.rotate_s or w.video_bytes >= self.rotate_bytes)
+        ):
             self._close()
             w = None
         if w is None:
             name = time.strftime("drive-%Y%m%d-%H%M%S") + f"-{len(self.paths):03d}"
-            w = self._writer = RecordingWriter(self.base / name, meta_from_config(self.cfg),
-                                               fps=self.cfg.camera.fps)
+            w = self._writer = RecordingWriter(
+                self.base / name, meta_from_config(self.cfg), fps=self.cfg.camera.fps
+            )
             self._segment_t0 = frame.t
             self.paths.append(w.path)
             log.info("recording to %s", w.path)

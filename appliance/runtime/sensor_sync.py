@@ -115,5 +115,12 @@ class SensorSync:
         ptu_valid = pa is not None and ti is not None and pa.fresh and ti.fresh
         if pa is not None and ti is not None:
             self._last_pan, self._last_tilt = pa.value, ti.value
-        return SensorSample(t, self._last_speed, self._last_yaw, self._last_pan, self._last_tilt,
-                            can_valid, ptu_valid)
+        return SensorSample(
+            t,
+            self._last_speed,
+            self._last_yaw,
+            self._last_pan,
+            self._last_tilt,
+            can_valid,
+            ptu_valid,
+        )

@@ -62,8 +62,13 @@ class RecordingSource(FrameSource):
     ``STALE``, as the V4L2 camera does. :meth:`interrupt` injects a camera outage.
     """
 
-    def __init__(self, recording: Recording, clock: PlaybackClock | None = None,
-                 capacity: int = 4, stale_s: float = 0.5) -> None:
+    def __init__(
+        self,
+        recording: Recording,
+        clock: PlaybackClock | None = None,
+        capacity: int = 4,
+        stale_s: float = 0.5,
+    ) -> None:
         self.recording = recording
         self.clock = clock
         self.stale_s = stale_s
@@ -101,8 +106,12 @@ class RecordingSource(FrameSource):
                     self._frames.append(CameraFrame(f.index, t, f.image, "recording"))
                     captured += 1
                     self._state = LinkState.OK
-                    self._stats = CameraStats(frames=captured, delivered=self._stats.delivered,
-                                              overwritten=overwritten, opens=1)
+                    self._stats = CameraStats(
+                        frames=captured,
+                        delivered=self._stats.delivered,
+                        overwritten=overwritten,
+                        opens=1,
+                    )
                     self._cond.notify_all()
                 if self._stop.is_set():
                     break
@@ -121,13 +130,16 @@ class RecordingSource(FrameSource):
 
     def read(self, timeout: float) -> CameraFrame | None:
         with self._cond:
-            if not self._cond.wait_for(lambda: bool(self._frames) or self.finished.is_set(), timeout):
+            if not self._cond.wait_for(
+                lambda: bool(self._frames) or self.finished.is_set(), timeout
+            ):
                 return None
             if not self._frames:
                 return None
             s = self._stats
-            self._stats = CameraStats(frames=s.frames, delivered=s.delivered + 1,
-                                      overwritten=s.overwritten, opens=1)
+            self._stats = CameraStats(
+                frames=s.frames, delivered=s.delivered + 1, overwritten=s.overwritten, opens=1
+            )
             return self._frames.pop(0)
 
     def close(self) -> None:
@@ -143,7 +155,11 @@ class RecordingSource(FrameSource):
     @property
     def state(self) -> LinkState:
         last = self._last_mono
-        if self._state is LinkState.OK and last is not None and time.monotonic() - last > self.stale_s:
+        if (
+            self._state is LinkState.OK
+            and last is not None
+            and time.monotonic() - last > self.stale_s
+        ):
             return LinkState.STALE
         return self._state
 
@@ -190,7 +206,9 @@ class CanPlayer(_Player):
 
     name = "can-player"
 
-    def __init__(self, messages: Iterator[can.Message], bus: can.BusABC, clock: PlaybackClock) -> None:
+    def __init__(
+        self, messages: Iterator[can.Message], bus: can.BusABC, clock: PlaybackClock
+    ) -> None:
         super().__init__()
         self._messages = messages
         self._bus = bus
@@ -211,9 +229,15 @@ class CanPlayer(_Player):
             mute = self._mute
             if mute is not None and mute[0] <= time.monotonic() < mute[1]:
                 continue
-            out = can.Message(arbitration_id=msg.arbitration_id, is_extended_id=msg.is_extended_id,
-                              is_remote_frame=msg.is_remote_frame, is_error_frame=msg.is_error_frame,
-                              is_fd=msg.is_fd, data=msg.data, dlc=msg.dlc)
+            out = can.Message(
+                arbitration_id=msg.arbitration_id,
+                is_extended_id=msg.is_extended_id,
+                is_remote_frame=msg.is_remote_frame,
+                is_error_frame=msg.is_error_frame,
+                is_fd=msg.is_fd,
+                data=msg.data,
+                dlc=msg.dlc,
+            )
             try:
                 self._bus.send(out, timeout=0.05)
                 self.sent += 1
@@ -226,7 +250,9 @@ class PtuPlayer(_Player):
 
     name = "ptu-player"
 
-    def __init__(self, track: PtuTrack, sink: Callable[[PtuSample], None], clock: PlaybackClock) -> None:
+    def __init__(
+        self, track: PtuTrack, sink: Callable[[PtuSample], None], clock: PlaybackClock
+    ) -> None:
         super().__init__()
         self._track = track
         self._sink = sink

@@ -75,7 +75,8 @@ class RunStats:
     frames_read: int = 0
     frames_processed: int = 0
     stage_ms: dict[str, list[float]] = field(
-        default_factory=lambda: {"vision": [], "decision": [], "total": [], "end_to_end": []})
+        default_factory=lambda: {"vision": [], "decision": [], "total": [], "end_to_end": []}
+    )
     status_changes: list[str] = field(default_factory=list)
     warnings: list[WarningEvent] = field(default_factory=list)
     first_frame_t: float | None = None
@@ -85,9 +86,15 @@ class RunStats:
 class Supervisor:
     """Owns the ring buffers and the capture, processing and output threads of one run."""
 
-    def __init__(self, cfg: Config, outputs: RunOutputs, notifier: SdNotifier | None = None,
-                 on_event: Callable[[str], None] | None = None, recorder: Recorder | None = None,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+    def __init__(
+        self,
+        cfg: Config,
+        outputs: RunOutputs,
+        notifier: SdNotifier | None = None,
+        on_event: Callable[[str], None] | None = None,
+        recorder: Recorder | None = None,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
         self.cfg = cfg
         self.camera_model = camera_from_config(cfg)
         self.outputs = outputs
@@ -103,7 +110,7 @@ class Supervisor:
         self.stats = RunStats()
         self.stop_event = threading.Event()
         self._processing_done = threading.Event()
-        self._latency: deque[tuple[float, float]] = deque()   # (mono time, ms) of the last second
+        self._latency: deque[tuple[float, float]] = deque()  # (mono time, ms) of the last second
         self._drops: deque[tuple[float, int]] = deque()
         self._warning_level = 0
         self._last_frame = -1
@@ -112,13 +119,21 @@ class Supervisor:
     # ------------------------------------------------------------------ public
 
     def run(self, inputs: LiveInputs, max_seconds: float | None = None) -> RunStats:
-        """Run until :attr:`stop_event` is set (signal), a recording source ends, or ``max_seconds``."""
+        """Run until :attr:`stop_event` is set (a signal), a recording source ends or
+        ``max_seconds`` pass."""
         threads = [
-            threading.Thread(target=self._guard, args=(self._capture_loop, inputs), name="capture",
-                             daemon=True),
-            threading.Thread(target=self._guard, args=(self._processing_loop, inputs), name="processing",
-                             daemon=True),
-            threading.Thread(target=self._guard, args=(self._output_loop,), name="output", daemon=True),
+            threading.Thread(
+                target=self._guard, args=(self._capture_loop, inputs), name="capture", daemon=True
+            ),
+            threading.Thread(
+                target=self._guard,
+                args=(self._processing_loop, inputs),
+                name="processing",
+                daemon=True,
+            ),
+            threading.Thread(
+                target=self._guard, args=(self._output_loop,), name="output", daemon=True
+            ),
         ]
         inputs.camera.open()
         for th in threads:
@@ -184,8 +199,11 @@ class Supervisor:
 
     def _processing_loop(self, inputs: LiveInputs) -> None:
         cfg = self.cfg
-        sync = SensorSync(cfg.vehicle_can.stale_s, max(cfg.vehicle_can.stale_s, 2.0 / cfg.ptu.poll_hz),
-                          ptu_present=inputs.ptu_enabled)
+        sync = SensorSync(
+            cfg.vehicle_can.stale_s,
+            max(cfg.vehicle_can.stale_s, 2.0 / cfg.ptu.poll_hz),
+            ptu_present=inputs.ptu_enabled,
+        )
         state: PipelineState | None = None
         rt = inputs.to_recording or (lambda t: t)
         last_status = 0.0
@@ -196,7 +214,9 @@ class Supervisor:
                 now = self.clock()
                 self.notifier.watchdog()
                 for v in self.can_ring.drain():
-                    (sync.add_speed if v.kind is SignalKind.SPEED else sync.add_yaw_rate)(rt(v.t), v.value)
+                    (sync.add_speed if v.kind is SignalKind.SPEED else sync.add_yaw_rate)(
+                        rt(v.t), v.value
+                    )
                 for p in self.ptu_ring.drain():
                     sync.add_ptu(rt(p.t), p.pan_rad, p.tilt_rad)
                 cam_state = inputs.camera.state
@@ -221,7 +241,9 @@ class Supervisor:
                 done = self.clock()
                 latency_ms = (done - cf.t) * 1e3
                 if inputs.hmi is not None:
-                    inputs.hmi.publish(warning=hmi_warning(decision.warning_level, decision.warning_track))
+                    inputs.hmi.publish(
+                        warning=hmi_warning(decision.warning_level, decision.warning_track)
+                    )
                 self._record_timing(out, latency_ms, done)
                 self._out_ring.put(out)
                 status = self._update_health(inputs, done, sensors, False)
@@ -246,7 +268,9 @@ class Supervisor:
         while self._latency and self._latency[0][0] < now - 1.0:
             self._latency.popleft()
 
-    def _update_health(self, inputs: LiveInputs, now: float, sensors: Any, camera_lost: bool) -> HealthStatus:
+    def _update_health(
+        self, inputs: LiveInputs, now: float, sensors: Any, camera_lost: bool
+    ) -> HealthStatus:
         dropped = self.frame_ring.stats().dropped + inputs.camera.stats.overwritten
         self._drops.append((now, dropped))
         while self._drops and self._drops[0][0] < now - 1.0:
@@ -258,11 +282,14 @@ class Supervisor:
         ptu_bad = False
         if inputs.ptu is not None and inputs.ptu_enabled:
             ptu_bad = inputs.ptu.state is not LinkState.OK
-        faults = Faults(camera=camera_lost, vehicle_can_stale=can_stale, ptu=ptu_bad, overrun=overrun)
+        faults = Faults(
+            camera=camera_lost, vehicle_can_stale=can_stale, ptu=ptu_bad, overrun=overrun
+        )
         lat = [ms for _, ms in self._latency]
         rate = float(len(lat))
-        change = self.health.update(self.stats.frames_processed > 0, faults, rate,
-                                    float(np.median(lat)) if lat else 0.0)
+        change = self.health.update(
+            self.stats.frames_processed > 0, faults, rate, float(np.median(lat)) if lat else 0.0
+        )
         if change is not None:
             self.stats.status_changes.append(change)
             self.on_event(change)
@@ -273,8 +300,18 @@ class Supervisor:
     def _clear_warnings(self, inputs: LiveInputs, t: float, state: PipelineState | None) -> None:
         """Camera lost: an active warning is cleared (a blind appliance must not keep warning)."""
         if self._warning_level > 0:
-            self._out_ring.put(WarningEvent(t=t, frame=self._last_frame, level=0, track=None, bbox=None, ttc_s=None,
-                                            distance_m=None, bearing_rad=None))
+            self._out_ring.put(
+                WarningEvent(
+                    t=t,
+                    frame=self._last_frame,
+                    level=0,
+                    track=None,
+                    bbox=None,
+                    ttc_s=None,
+                    distance_m=None,
+                    bearing_rad=None,
+                )
+            )
             if inputs.hmi is not None:
                 inputs.hmi.publish(warning=hmi_warning(0, None))
             self._warning_level = 0
@@ -307,7 +344,9 @@ def describe_warning(w: WarningEvent) -> str:
     return f"t={w.t:.2f} frame {w.frame}: {name}{track}{ttc}{dist}"
 
 
-def run_summary(stats: RunStats, cfg: Config, extra: dict[str, Any] | None = None) -> dict[str, Any]:
+def run_summary(
+    stats: RunStats, cfg: Config, extra: dict[str, Any] | None = None
+) -> dict[str, Any]:
     return {
         "frames_read": stats.frames_read,
         "frames_processed": stats.frames_processed,

@@ -15,12 +15,16 @@ from drivers.vehicle_signals import VehicleCanConfigError, VehicleSignalDecoder
 
 
 def vehicle_decoder(cfg: Config) -> VehicleSignalDecoder:
-    """The pure speed / yaw-rate decoder configured by ``[vehicle_can]`` (or a recording's ``[can]``)."""
+    """The pure speed / yaw-rate decoder of ``[vehicle_can]`` (or a recording's ``[can]``)."""
     v = cfg.vehicle_can
     try:
         return VehicleSignalDecoder(
-            v.dbc, speed=v.speed, speed_unit=v.speed_unit, yaw_rate=v.yaw_rate,
-            yaw_rate_unit=v.yaw_rate_unit, yaw_rate_sign=v.yaw_rate_sign,
+            v.dbc,
+            speed=v.speed,
+            speed_unit=v.speed_unit,
+            yaw_rate=v.yaw_rate,
+            yaw_rate_unit=v.yaw_rate_unit,
+            yaw_rate_sign=v.yaw_rate_sign,
         )
     except VehicleCanConfigError as exc:
         raise ConfigError(exc.dbc, exc.what or "vehicle_can.dbc", exc.problem) from None
@@ -39,12 +43,23 @@ def hmi_warning(level: int, track: TrackReport | None) -> HmiWarning:
     """What CollisionWarning carries for the current warning level and the track behind it."""
     if level <= 0 or track is None:
         return HmiWarning(level=0)
-    return HmiWarning(level=level, track_id=int(track.id) % 256, ttc_s=track.ttc_s,
-                      distance_m=track.distance_m, bearing_rad=track.bearing_rad)
+    return HmiWarning(
+        level=level,
+        track_id=int(track.id) % 256,
+        ttc_s=track.ttc_s,
+        distance_m=track.distance_m,
+        bearing_rad=track.bearing_rad,
+    )
 
 
 def hmi_status(status: HealthStatus) -> HmiStatus:
     f = status.faults
-    return HmiStatus(state=status.state, fault_camera=f.camera, fault_vehicle_can_stale=f.vehicle_can_stale,
-                     fault_ptu=f.ptu, fault_overrun=f.overrun, frame_rate_hz=status.frame_rate,
-                     latency_ms=status.latency_ms)
+    return HmiStatus(
+        state=status.state,
+        fault_camera=f.camera,
+        fault_vehicle_can_stale=f.vehicle_can_stale,
+        fault_ptu=f.ptu,
+        fault_overrun=f.overrun,
+        frame_rate_hz=status.frame_rate,
+        latency_ms=status.latency_ms,
+    )

@@ -30,9 +30,7 @@ FloatArray = NDArray[np.float64]
 # Rotation taking camera axes to PTU-head axes (head axes = vehicle axes when the
 # PTU is at zero and the mount is level): camera z (forward) -> head x,
 # camera x (right) -> head -y, camera y (down) -> head -z.
-HEAD_FROM_CAMERA: FloatArray = np.array(
-    [[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]]
-)
+HEAD_FROM_CAMERA: FloatArray = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 
 
 def rot_x(a: float) -> FloatArray:
@@ -87,7 +85,7 @@ def rotation_angle(R: NDArray[np.floating]) -> FloatArray:
     """Angle (rad) of the rotation R, shape (...)."""
     R = np.asarray(R, dtype=np.float64)
     c = (np.trace(R, axis1=-2, axis2=-1) - 1.0) / 2.0
-    return np.arccos(np.clip(c, -1.0, 1.0))
+    return np.asarray(np.arccos(np.clip(c, -1.0, 1.0)), dtype=np.float64)
 
 
 def vehicle_from_camera_rotation(pitch_rad: float, pan_rad: float, tilt_rad: float) -> FloatArray:
@@ -198,11 +196,17 @@ class PinholeCamera:
         """Image pixels (N, 2) -> camera-frame rays (N, 3) with z = 1 (distortion removed)."""
         ideal = self.undistort(uv)
         return np.column_stack(
-            [(ideal[:, 0] - self.cx) / self.fx, (ideal[:, 1] - self.cy) / self.fy, np.ones(len(ideal))]
+            [
+                (ideal[:, 0] - self.cx) / self.fx,
+                (ideal[:, 1] - self.cy) / self.fy,
+                np.ones(len(ideal)),
+            ]
         )
 
 
-def rotational_flow(camera: PinholeCamera, uv: NDArray[np.floating], R: NDArray[np.floating]) -> FloatArray:
+def rotational_flow(
+    camera: PinholeCamera, uv: NDArray[np.floating], R: NDArray[np.floating]
+) -> FloatArray:
     """Flow F_R (N, 2) that the rotation R alone induces at ideal pixels ``uv`` (N, 2).
 
     ``x' ~ K R K^-1 x``: independent of depth (section 2 of the paper).
@@ -225,4 +229,4 @@ def epipole(camera: PinholeCamera, t: NDArray[np.floating], eps: float = 1e-9) -
     if abs(t[2]) < eps * max(1.0, float(np.linalg.norm(t))):
         return None
     e = camera.K @ t
-    return e[:2] / e[2]
+    return np.asarray(e[:2] / e[2], dtype=np.float64)

@@ -26,11 +26,9 @@ from appliance.runtime.outputs import RunOutputs
 from appliance.runtime.recorder import LiveRecorder
 from appliance.runtime.sd_notify import SdNotifier
 from appliance.runtime.supervisor import LiveInputs, Supervisor, run_summary
-from appliance.runtime.wiring import hmi_codec, vehicle_decoder
+from appliance.runtime.wiring import hmi_writer, ptu_driver, vehicle_reader
 from drivers.camera import create_source
-from drivers.hmi_can import HmiCanWriter
-from drivers.ptu import PtuDriver, PtuSample
-from drivers.vehicle_can import VehicleCanReader
+from drivers.ptu import PtuSample
 
 log = logging.getLogger("collision-warning")
 
@@ -39,7 +37,7 @@ def build_inputs(
     cfg: Config, sup: Supervisor, out_dir: Path, recorder: LiveRecorder | None
 ) -> LiveInputs:
     """Open the real drivers as configured, their sinks pointing at the supervisor's rings."""
-    c, v, p, h = cfg.camera, cfg.vehicle_can, cfg.ptu, cfg.hmi_can
+    c, p = cfg.camera, cfg.ptu
     camera = create_source(
         "v4l2",
         device=c.device,
@@ -53,15 +51,8 @@ def build_inputs(
         stale_s=c.stale_s,
         timestamps=c.timestamps,
     )
-    vehicle = VehicleCanReader(
-        vehicle_decoder(cfg),
-        interface=v.interface,
-        channel=v.channel,
-        stale_s=v.stale_s,
-        reopen_min_s=v.reopen_min_s,
-        reopen_max_s=v.reopen_max_s,
-        sink=sup.can_ring.put,
-        raw_sink=recorder.add_can if recorder is not None else None,
+    vehicle = vehicle_reader(
+        cfg, sup.can_ring.put, recorder.add_can if recorder is not None else None
     ).start()
     ptu = None
     if p.enabled:
@@ -71,32 +62,8 @@ def build_inputs(
             if recorder is not None:
                 recorder.add_ptu(sample)
 
-        ptu = PtuDriver(
-            p.port,
-            baud=p.baud,
-            pan_sign=p.pan_sign,
-            tilt_sign=p.tilt_sign,
-            pan_offset_rad=p.pan_offset_rad,
-            tilt_offset_rad=p.tilt_offset_rad,
-            poll_hz=p.poll_hz,
-            timeout_s=p.timeout_s,
-            retries=p.retries,
-            speed_rad_s=p.speed_rad_s,
-            reopen_min_s=p.reopen_min_s,
-            reopen_max_s=p.reopen_max_s,
-            fault_after=p.fault_after,
-            sink=ptu_sink,
-        ).start()
-    hmi = HmiCanWriter(
-        hmi_codec(cfg),
-        interface=h.interface,
-        channel=h.channel,
-        period_s=h.period_s,
-        tx_queue=h.tx_queue,
-        log_path=out_dir / "can_out.log",
-        reopen_min_s=h.reopen_min_s,
-        reopen_max_s=h.reopen_max_s,
-    ).start()
+        ptu = ptu_driver(cfg, p.port, ptu_sink).start()
+    hmi = hmi_writer(cfg, out_dir / "can_out.log").start()
     players: list[Any] = [recorder] if recorder is not None else []
     return LiveInputs(
         camera=camera, vehicle=vehicle, ptu=ptu, hmi=hmi, players=players, ptu_enabled=p.enabled

@@ -27,11 +27,9 @@ from appliance.runtime.recorder import LiveRecorder
 from appliance.runtime.sd_notify import SdNotifier
 from appliance.runtime.sources import CanPlayer, PlaybackClock, PtuPlayer, RecordingSource
 from appliance.runtime.supervisor import LiveInputs, RunStats, Supervisor, run_summary
-from appliance.runtime.wiring import hmi_codec, vehicle_decoder
-from drivers.hmi_can import HmiCanWriter
+from appliance.runtime.wiring import hmi_writer, ptu_driver, vehicle_reader
 from drivers.ptu import PtuDriver, PtuSample
 from drivers.ptu_sim import PtuSimulator
-from drivers.vehicle_can import VehicleCanReader
 
 START_LEAD_S = 0.3  # s, drivers open before the first recorded sample is played
 _channels = itertools.count()
@@ -105,45 +103,22 @@ def play_live(
     vehicle = hmi = ptu = sim = player_bus = None
     players: list[Any] = []
     try:
-        vehicle = VehicleCanReader(
-            vehicle_decoder(cfg),
-            interface=buses.vehicle[0],
-            channel=buses.vehicle[1],
-            stale_s=cfg.vehicle_can.stale_s / rate,
-            reopen_min_s=cfg.vehicle_can.reopen_min_s,
-            reopen_max_s=cfg.vehicle_can.reopen_max_s,
-            sink=sup.can_ring.put,
-            raw_sink=recorder.add_can if recorder is not None else None,
+        vehicle = vehicle_reader(
+            cfg,
+            sup.can_ring.put,
+            recorder.add_can if recorder is not None else None,
+            bus=buses.vehicle,
+            stale_scale=1.0 / rate,
         ).start()
         if play_can and not vehicle.wait_stats(lambda s: s.opens >= 1, 5.0):
             raise RuntimeFailure(
                 f"vehicle CAN {buses.vehicle[0]}:{buses.vehicle[1]} did not open: "
                 f"{vehicle.stats.last_error}"
             )
-        hmi = HmiCanWriter(
-            hmi_codec(cfg, buses.hmi[1]),
-            interface=buses.hmi[0],
-            channel=buses.hmi[1],
-            period_s=cfg.hmi_can.period_s,
-            tx_queue=cfg.hmi_can.tx_queue,
-            log_path=out / "can_out.log",
-        ).start()
+        hmi = hmi_writer(cfg, out / "can_out.log", bus=buses.hmi).start()
         if ptu_simulator:
             sim = PtuSimulator().start()
-            p = cfg.ptu
-            ptu = PtuDriver(
-                sim.port,
-                baud=p.baud,
-                pan_sign=p.pan_sign,
-                tilt_sign=p.tilt_sign,
-                pan_offset_rad=p.pan_offset_rad,
-                tilt_offset_rad=p.tilt_offset_rad,
-                poll_hz=p.poll_hz,
-                timeout_s=p.timeout_s,
-                retries=p.retries,
-                speed_rad_s=p.speed_rad_s,
-                sink=ptu_sink,
-            ).start()
+            ptu = ptu_driver(cfg, sim.port, ptu_sink).start()
         clock = PlaybackClock(t0_rec, time.monotonic() + START_LEAD_S, rate)
         if recorder is not None:
             recorder.to_recording = clock.recording

@@ -6,12 +6,24 @@ Driver configuration errors (an unknown signal name, a malformed DBC) become
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from pathlib import Path
+
+import can
+
 from appliance.config import Config
 from appliance.errors import ConfigError
 from appliance.messages import TrackReport
 from appliance.runtime.health import HealthStatus
+from drivers.hmi_can import HmiCanWriter
 from drivers.hmi_codec import HmiCodec, HmiDbcError, HmiStatus, HmiWarning
-from drivers.vehicle_signals import VehicleCanConfigError, VehicleSignalDecoder
+from drivers.ptu import PtuDriver, PtuSample
+from drivers.vehicle_can import VehicleCanReader
+from drivers.vehicle_signals import (
+    VehicleCanConfigError,
+    VehicleSignal,
+    VehicleSignalDecoder,
+)
 
 
 def vehicle_decoder(cfg: Config) -> VehicleSignalDecoder:
@@ -37,6 +49,67 @@ def hmi_codec(cfg: Config, channel: str | None = None) -> HmiCodec:
         return HmiCodec(h.dbc, h.warning_id, h.status_id, channel=channel or h.channel)
     except HmiDbcError as exc:
         raise ConfigError(h.dbc, "hmi_can.dbc", str(exc)) from None
+
+
+def vehicle_reader(
+    cfg: Config,
+    sink: Callable[[VehicleSignal], None],
+    raw_sink: Callable[[can.Message], None] | None = None,
+    *,
+    bus: tuple[str, str] | None = None,
+    stale_scale: float = 1.0,
+) -> VehicleCanReader:
+    """The vehicle CAN reader of ``[vehicle_can]`` (``bus``: (interface, channel) instead of
+    the configured one; ``stale_scale`` stretches the staleness limit of a slowed playback)."""
+    v = cfg.vehicle_can
+    interface, channel = bus or (v.interface, v.channel)
+    return VehicleCanReader(
+        vehicle_decoder(cfg),
+        interface=interface,
+        channel=channel,
+        stale_s=v.stale_s * stale_scale,
+        reopen_min_s=v.reopen_min_s,
+        reopen_max_s=v.reopen_max_s,
+        sink=sink,
+        raw_sink=raw_sink,
+    )
+
+
+def ptu_driver(cfg: Config, port: str, sink: Callable[[PtuSample], None]) -> PtuDriver:
+    """The pan-tilt unit driver of ``[ptu]`` on ``port`` (the configured one, or a simulator's)."""
+    p = cfg.ptu
+    return PtuDriver(
+        port,
+        baud=p.baud,
+        pan_sign=p.pan_sign,
+        tilt_sign=p.tilt_sign,
+        pan_offset_rad=p.pan_offset_rad,
+        tilt_offset_rad=p.tilt_offset_rad,
+        poll_hz=p.poll_hz,
+        timeout_s=p.timeout_s,
+        retries=p.retries,
+        speed_rad_s=p.speed_rad_s,
+        reopen_min_s=p.reopen_min_s,
+        reopen_max_s=p.reopen_max_s,
+        fault_after=p.fault_after,
+        sink=sink,
+    )
+
+
+def hmi_writer(cfg: Config, log_path: Path, *, bus: tuple[str, str] | None = None) -> HmiCanWriter:
+    """The HMI CAN writer of ``[hmi_can]``, logging every frame sent to ``log_path``."""
+    h = cfg.hmi_can
+    interface, channel = bus or (h.interface, h.channel)
+    return HmiCanWriter(
+        hmi_codec(cfg, channel),
+        interface=interface,
+        channel=channel,
+        period_s=h.period_s,
+        tx_queue=h.tx_queue,
+        log_path=log_path,
+        reopen_min_s=h.reopen_min_s,
+        reopen_max_s=h.reopen_max_s,
+    )
 
 
 def hmi_warning(level: int, track: TrackReport | None) -> HmiWarning:

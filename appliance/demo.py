@@ -23,7 +23,7 @@ from typing import Any
 
 from appliance.config import Config, load_config
 from appliance.errors import ApplianceError
-from appliance.recording import Recording
+from appliance.recording import Recording, apply_meta
 from appliance.runtime.realtime_replay import Buses, play_live
 from appliance.sim.drive import simulate
 
@@ -112,8 +112,6 @@ def main(args: argparse.Namespace) -> int:
     rows = []
     for rec_dir in prepare_recordings(out):
         rec = Recording(rec_dir, defaults=cfg)
-        from appliance.recording import apply_meta
-
         run_cfg = apply_meta(cfg, rec.meta)
         run_dir = rec_dir.parent / "run"
         truth = rec.truth() or {}

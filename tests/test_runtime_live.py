@@ -16,14 +16,18 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from appliance.config import Config
-from appliance.recording import Recording, apply_meta
+from appliance.recording import PtuTrack, Recording, apply_meta
 from appliance.replay import replay
-from appliance.runtime.realtime_replay import Buses, LiveRig, play_live
+from appliance.runtime.realtime_replay import Buses, LiveRig, play_live, ptu_at_start
 from appliance.runtime.recorder import LiveRecorder
+from appliance.runtime.sources import PlaybackClock, PtuCommander
 from appliance.sim.drive import simulate
+from drivers.ptu import PtuSample
+from drivers.ptu_sim import PtuSimulator
 
 pytestmark = pytest.mark.slow
 
@@ -178,10 +182,8 @@ def test_recorder_rotates_by_duration_and_each_piece_replays(
 ) -> None:
     """run --record: a long drive becomes several recordings, each valid on its own."""
     import can as pycan
-    import numpy as np
 
     from drivers.camera import CameraFrame
-    from drivers.ptu import PtuSample
 
     cfg = default_config.with_overrides({"runtime": {"record_rotate_s": 1.0}})
     rec = LiveRecorder(tmp_path / "rec", cfg).start()
@@ -208,3 +210,33 @@ def test_recorder_rotates_by_duration_and_each_piece_replays(
         assert r.frame_times[-1] - r.frame_times[0] < 1.0
         assert len(list(r.can_messages())) >= r.n_frames - 1
     assert frames == 75
+
+
+def test_ptu_simulator_turns_as_the_recording_did(default_config: Config) -> None:
+    """The demo's PTU simulator starts where the recording's PTU was and follows its pans, so
+    the PTU angles the pipeline sees match the ones the simulated frames were rendered with."""
+    import numpy as np
+
+    t = 1000.0 + np.arange(0.0, 2.0, 0.05)
+    # 0.1 rad, then a 0.35 rad pan right in 1 s (as the intersection scenarios do), then held
+    pan = 0.1 - 0.35 * np.clip(t - 1000.5, 0.0, 1.0)
+    track = PtuTrack(t=t, pan=pan, tilt=np.zeros_like(t))
+    samples: list[PtuSample] = []
+    with PtuSimulator() as sim:
+        ptu = ptu_at_start(default_config, sim.port, samples.append, track)
+        try:
+            assert abs(samples[-1].pan_rad - 0.1) < 2e-3  # at the start position before playing
+            clock = PlaybackClock(1000.0, time.monotonic() + 0.1)
+            commander = PtuCommander(track, ptu, clock).start()
+            assert commander.finished.wait(5.0) and commander.error is None
+            n = ptu.stats.samples  # a few more polls after the last move
+            assert ptu.wait_stats(lambda s: s.samples >= n + 10, 2.0)
+        finally:
+            ptu.stop(timeout=1.0)
+    played = [s for s in samples if clock.recording(s.t) >= 1000.0]
+    rec_t = np.array([clock.recording(s.t) for s in played])
+    got = np.array([s.pan_rad for s in played])
+    want = np.interp(rec_t, t, pan)
+    assert np.max(np.abs(got - want)) < 0.05  # within a poll period of the ramp
+    assert abs(got[-1] - pan[-1]) < 2e-3  # and exactly where the recording ended
+    assert np.min(got) > pan[-1] - 2e-3  # no overshoot

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import itertools
 import os
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -21,17 +22,25 @@ import can
 
 from appliance.config import Config
 from appliance.errors import RuntimeFailure
-from appliance.recording import Recording
+from appliance.recording import PtuTrack, Recording
 from appliance.runtime.outputs import RunOutputs
 from appliance.runtime.recorder import LiveRecorder
 from appliance.runtime.sd_notify import SdNotifier
-from appliance.runtime.sources import CanPlayer, PlaybackClock, PtuPlayer, RecordingSource
+from appliance.runtime.sources import (
+    CanPlayer,
+    PlaybackClock,
+    PtuCommander,
+    PtuPlayer,
+    RecordingSource,
+)
 from appliance.runtime.supervisor import LiveInputs, RunStats, Supervisor, run_summary
 from appliance.runtime.wiring import hmi_writer, ptu_driver, vehicle_reader
 from drivers.ptu import PtuDriver, PtuSample
 from drivers.ptu_sim import PtuSimulator
 
 START_LEAD_S = 0.3  # s, drivers open before the first recorded sample is played
+PTU_ARRIVED_RAD = 2e-3  # rad (about 2 steps of a PTU-D46), the simulator is at the start position
+PTU_START_TIMEOUT_S = 5.0  # s, to turn the PTU simulator to the recording's start position
 _channels = itertools.count()
 
 
@@ -66,6 +75,32 @@ class Buses:
             (cfg.vehicle_can.interface, cfg.vehicle_can.channel),
             (cfg.hmi_can.interface, cfg.hmi_can.channel),
         )
+
+
+def ptu_at_start(
+    cfg: Config, port: str, sink: Callable[[PtuSample], None], track: PtuTrack | None
+) -> PtuDriver:
+    """The PTU driver on ``port``, its unit turned to where the recording's PTU starts.
+
+    Raises :class:`RuntimeFailure` when the unit does not report that position in time.
+    """
+    start = (0.0, 0.0) if track is None else (float(track.pan[0]), float(track.tilt[0]))
+    arrived = threading.Event()
+
+    def watch(sample: PtuSample) -> None:
+        sink(sample)
+        if max(abs(sample.pan_rad - start[0]), abs(sample.tilt_rad - start[1])) < PTU_ARRIVED_RAD:
+            arrived.set()
+
+    ptu = ptu_driver(cfg, port, watch).start()
+    ptu.move_to(*start)
+    if not arrived.wait(PTU_START_TIMEOUT_S):
+        ptu.stop(timeout=0.5)
+        raise RuntimeFailure(
+            f"PTU on {port} did not reach the recording's start position "
+            f"(pan {start[0]:.4f}, tilt {start[1]:.4f} rad) within {PTU_START_TIMEOUT_S:.0f} s"
+        )
+    return ptu
 
 
 def play_live(
@@ -118,7 +153,7 @@ def play_live(
         hmi = hmi_writer(cfg, out / "can_out.log", bus=buses.hmi).start()
         if ptu_simulator:
             sim = PtuSimulator().start()
-            ptu = ptu_driver(cfg, sim.port, ptu_sink).start()
+            ptu = ptu_at_start(cfg, sim.port, ptu_sink, track)
         clock = PlaybackClock(t0_rec, time.monotonic() + START_LEAD_S, rate)
         if recorder is not None:
             recorder.to_recording = clock.recording
@@ -127,8 +162,11 @@ def play_live(
             player_bus = can.Bus(interface=buses.vehicle[0], channel=buses.vehicle[1])
             can_player = CanPlayer(rec.can_messages(), player_bus, clock)
             players.append(can_player.start())
-        if not ptu_simulator and track is not None:
-            players.append(PtuPlayer(track, ptu_sink, clock).start())
+        if track is not None:
+            if ptu is not None:  # the simulator turns as the recording's PTU did
+                players.append(PtuCommander(track, ptu, clock).start())
+            else:
+                players.append(PtuPlayer(track, ptu_sink, clock).start())
         if sim is not None:
             players.append(sim)
         camera = RecordingSource(

@@ -24,7 +24,7 @@ import can
 from appliance.recording import PtuTrack, Recording
 from drivers.camera import CameraFrame, CameraStats, FrameSource, register_source
 from drivers.link import LinkState
-from drivers.ptu import PtuSample
+from drivers.ptu import PtuDriver, PtuSample
 
 log = logging.getLogger(__name__)
 
@@ -264,3 +264,41 @@ class PtuPlayer(_Player):
             if not wait_until(self._stop, mono):
                 return
             self._sink(PtuSample(mono, float(pan), float(tilt)))
+
+
+class PtuCommander(_Player):
+    """Turns a real pan-tilt unit, through its driver, the way a recording's PTU turned.
+
+    Each change of the recorded position becomes an absolute move, sent ``lead_s`` before
+    its recorded time (about one poll period, so that the unit, moving with its own speed
+    and acceleration limits, is there when the frame rendered with that pan is shown).
+    The demo uses it so that the PTU simulator reports the pans its frames were made with.
+    """
+
+    name = "ptu-commander"
+
+    def __init__(
+        self,
+        track: PtuTrack,
+        driver: PtuDriver,
+        clock: PlaybackClock,
+        lead_s: float = 0.05,
+        min_step_rad: float = 1e-4,
+    ) -> None:
+        super().__init__()
+        self._track = track
+        self._driver = driver
+        self._clock = clock
+        self._lead = lead_s
+        self._min_step = min_step_rad
+
+    def _run(self) -> None:
+        last = (float(self._track.pan[0]), float(self._track.tilt[0]))
+        for t, pan, tilt in zip(self._track.t, self._track.pan, self._track.tilt):
+            target = (float(pan), float(tilt))
+            if max(abs(target[0] - last[0]), abs(target[1] - last[1])) < self._min_step:
+                continue
+            if not wait_until(self._stop, self._clock.mono(float(t)) - self._lead):
+                return
+            self._driver.move_to(*target)
+            last = target

@@ -1,11 +1,12 @@
 """``collision-warning demo``: the main job on the embedded default, through the real drivers.
 
-Two simulated drives, one with a collision and one without, are written as drive
+Three simulated drives, two with a collision and one without, are written as drive
 recordings (kept under ``OUT/<scenario>/recording``, so they can be replayed and
 evaluated afterwards) and then played live, in real time: frames through the
 camera interface, vehicle CAN frames on a python-can bus (``vcan0`` where the
 kernel has it, else an in-process ``virtual`` bus) read by the real vehicle CAN
-reader, the PTU simulator on a pseudo-terminal polled by the real PTU driver, and
+reader, the PTU simulator on a pseudo-terminal (turned as the drive's PTU was) polled
+by the real PTU driver, and
 the warnings sent by the real HMI writer. One line per warning change, a summary
 per drive at the end.
 """
@@ -27,8 +28,13 @@ from appliance.recording import Recording, apply_meta
 from appliance.runtime.realtime_replay import Buses, play_live
 from appliance.sim.drive import simulate
 
-# (scenario, seed, duration s): one collision course, one that ends without collision
-DRIVES = (("pedestrian_crossing_nearside", 1, None), ("pedestrian_stops_at_kerb", 1, 8.0))
+# (scenario, seed, duration s): two collision courses (the car with the PTU turned towards
+# the intersection), one that ends without collision
+DRIVES = (
+    ("car_crossing_intersection", 1, 6.0),
+    ("pedestrian_crossing_nearside", 1, None),
+    ("pedestrian_stops_at_kerb", 1, 8.0),
+)
 
 
 def socketcan_available(channel: str) -> bool:

@@ -21,7 +21,7 @@ from appliance.errors import UsageError
 from appliance.messages import EgoMotion, Frame, ParticleSet, ProbabilityMap, SensorSample
 from appliance.vision.detection import ImportanceDensity, next_particles, road_importance
 from appliance.vision.epipolar import translation_from_theta
-from appliance.vision.flow import corner_candidates, track
+from appliance.vision.flow import corner_candidates, flow_covariance, track
 from appliance.vision.geometry import (
     FloatArray,
     PinholeCamera,
@@ -208,7 +208,9 @@ def perceive(state: VisionState, frame: Frame, sensors: SensorSample,
     # detection (section 2)
     valid = tracks.valid[:n]
     motion = CameraMotion(R=R, t_dir=t_dir, t_m=t_m, standstill=prior.standstill, K=camera.K)
-    cues = motion_cues(ideal_start[:n], ideal_end[:n], motion, road, cfg.detection)
+    cov = flow_covariance(state.prev_image, state.particles, tracks.residual[:n], cfg.flow.window_px) \
+        if cfg.detection.lk_noise_gain > 0.0 else None
+    cues = motion_cues(ideal_start[:n], ideal_end[:n], motion, road, cfg.detection, cov)
     weights = np.where(valid, np.clip(combine(cues, cfg.detection.likelihood), 0.0, 1.0), 0.0)
     end = tracks.end[:n]
     g = _importance(cfg, camera, road)

@@ -266,7 +266,7 @@ def test_particles_leaving_the_image_are_redrawn_not_piled_at_the_border(default
 def test_flows_measured_along_an_edge_do_not_flag_motion(default_config: Config) -> None:
     """A flow known only across the static direction (a lane marking pointing at the epipole)
     says nothing about its length; one known only along it (a bumper) nothing about its angle."""
-    cfg = default_config.with_overrides({"detection": {"lk_noise_gain": 6.0}}).detection
+    cfg = default_config.detection
     uv = np.array([[420.0, 300.0], [420.0, 300.0]])
     x_prev = road_correspondence(uv, 0.4)
     static_flow = uv[0] - x_prev[0]
@@ -288,7 +288,6 @@ def test_flows_measured_along_an_edge_do_not_flag_motion(default_config: Config)
         assert m.magnitude is not None and s.direction is not None
         assert (m.magnitude[0] > 0.8) == mag and (m.magnitude[0] < 0.05) == (not mag)
         assert (s.direction[0] > 0.8) == direc and (s.direction[0] < 0.05) == (not direc)
-    # no covariance or a gain of 0: every flow gets sigma_p, as in the paper
-    paper = motion_cues(short, uv, forward_motion(), ROAD, default_config.with_overrides(
-        {"detection": {"lk_noise_gain": 0.0}}).detection, along_edge)
+    # no covariance: every flow gets sigma_p, as in the paper
+    paper = motion_cues(short, uv, forward_motion(), ROAD, cfg, None)
     assert paper.magnitude is not None and paper.magnitude[0] > 0.8

@@ -153,3 +153,40 @@ def corner_candidates(gray: NDArray[np.uint8], cell_px: int) -> tuple[FloatArray
     best = float(strength.max()) if strength.size else 0.0
     keep = (strength > CORNER_MIN_EIGENVALUE) & (strength >= CORNER_QUALITY * best)
     return pos[keep], strength[keep]
+
+
+def lk_covariance(prev: NDArray[np.uint8], points: NDArray[np.floating],
+                  residual: NDArray[np.floating], window_px: int, residual_gain: float,
+                  image_noise_gray: float, fb_error: NDArray[np.floating] | None = None,
+                  fb_gain: float = 0.0) -> FloatArray | None:
+    """Each flow's error covariance (M, 3) px^2 for the likelihood, or None when every term is off.
+
+    ``residual_gain^2`` times :func:`flow_covariance` with LK's own residual, plus
+    ``image_noise_gray^2 G^-1``: the covariance of a window with gradient matrix G under
+    a fixed intensity noise (gray levels). The second term is what the aperture problem
+    costs: on road texture streaked along the image rows (foreshortening) the column
+    component of the flow is barely constrained, and measured LK errors across the
+    epipolar line grow about as ``6 gray levels x sqrt(d^T G^-1 d)`` (median) on the
+    simulator's bend, with a tail several times longer.
+
+    Plus ``(fb_gain x fb_error)^2`` on both axes: the forward-backward disagreement
+    (M,) px of each flow (NaN: not checked, counts 0) is a direct sample of its error.
+    On the simulator's static bend the flows that look independent have a median FB
+    error of 0.15 px against 0.01 px on the crossing car and cyclist, while their true
+    error is 1-3 px: LK is consistently wrong both ways on streaky texture, so a small
+    FB error stands for a much larger one.
+    """
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    total: FloatArray | None = None
+    if residual_gain > 0.0:
+        total = residual_gain ** 2 * flow_covariance(prev, pts, residual, window_px)
+    if image_noise_gray > 0.0:
+        s = np.full(len(pts), image_noise_gray / GAUSSIAN_L1_TO_STD)
+        c = flow_covariance(prev, pts, s, window_px)
+        total = c if total is None else total + c
+    if fb_gain > 0.0 and fb_error is not None:
+        fb = np.asarray(fb_error, dtype=np.float64).reshape(-1)
+        var = (fb_gain * np.where(np.isfinite(fb), fb, 0.0)) ** 2
+        c = np.column_stack([var, np.zeros_like(var), var])
+        total = c if total is None else total + c
+    return total

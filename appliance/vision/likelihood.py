@@ -191,12 +191,11 @@ def flow_std(flow_cov: FloatArray | None, static_dir: FloatArray, cfg: Detection
     number for every flow. A flow measured along an edge (lane marking, kerb, bumper) is
     only known across the edge, one in low contrast or across an occlusion boundary
     (large LK residual) is poorly known both ways. So each flow gets
-    ``sqrt(sigma_p^2 + g^2 d^T C d)`` with C its LK covariance (``flow.flow_covariance``)
-    and d the unit vector across / along the static direction; g = ``lk_noise_gain``
-    scales LK's white-noise covariance to the errors LK really makes (0: the paper's
-    constant sigma_p).
+    ``sqrt(sigma_p^2 + d^T C d)`` with C (N, 3) px^2 its LK covariance
+    (``flow.flow_covariance``, scaled as :func:`lk_covariance` says) and d the unit
+    vector across / along the static direction (C None: the paper's constant sigma_p).
     """
-    if flow_cov is None or cfg.lk_noise_gain <= 0.0:
+    if flow_cov is None:
         return None, None
     n = np.hypot(static_dir[:, 0], static_dir[:, 1])
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -207,14 +206,19 @@ def flow_std(flow_cov: FloatArray | None, static_dir: FloatArray, cfg: Detection
     with np.errstate(invalid="ignore"):
         along = c_uu * du * du + 2.0 * c_uv * du * dv + c_vv * dv * dv
         across = c_uu * dv * dv - 2.0 * c_uv * du * dv + c_vv * du * du
-    g2 = cfg.lk_noise_gain ** 2
     sp2 = cfg.sigma_p_px ** 2
 
     def std(var: FloatArray) -> FloatArray:
         var = np.where(np.isnan(var), np.inf, np.maximum(var, 0.0))
-        return np.sqrt(sp2 + g2 * var)
+        return np.sqrt(sp2 + var)
 
     return std(across), std(along)
+
+
+def beyond_reach(f_s: FloatArray, cfg: DetectionConfig) -> NDArray[np.bool_]:
+    """(N,) True where the road's static flow f_s (N, 2) px is longer than ``max_flow_px``."""
+    with np.errstate(invalid="ignore"):
+        return np.asarray(np.hypot(f_s[:, 0], f_s[:, 1]) > cfg.max_flow_px)
 
 
 def motion_cues(x_prev: NDArray[np.floating], x_cur: NDArray[np.floating], motion: CameraMotion,
@@ -241,8 +245,7 @@ def motion_cues(x_prev: NDArray[np.floating], x_cur: NDArray[np.floating], motio
     magnitude = magnitude_cue_from_static(flow_t, f_s, cfg, s_along)
     # where even the shortest static flow is beyond the reach of pyramidal LK, a measured
     # flow says nothing (typically the bottom of the image at speed): both cues are 0
-    with np.errstate(invalid="ignore"):
-        unreachable = np.hypot(f_s[:, 0], f_s[:, 1]) > cfg.max_flow_px
+    unreachable = beyond_reach(f_s, cfg)
     direction = np.where(unreachable, 0.0, direction)
     magnitude = np.where(unreachable, 0.0, magnitude)
     return Cues(direction, magnitude, None)

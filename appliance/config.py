@@ -227,6 +227,7 @@ class WarningConfig:
     moving_sigmas: float = _p(0.0, 100.0)
     moving_min_frames: int = _p(1, 1000)
     min_probability: float = _p(0.0, 1.0)
+    velocity_significance_sigmas: float = _p(0.0, 100.0)
 
 
 @dataclass(frozen=True)

@@ -24,10 +24,18 @@ from appliance.errors import ConfigError
 RESOURCES = "appliance.resources"
 
 
-def _p(lo: float | None = None, hi: float | None = None, *, choices: tuple[Any, ...] = (),
-       path: bool = False, lo_open: bool = False) -> Any:
+def _p(
+    lo: float | None = None,
+    hi: float | None = None,
+    *,
+    choices: tuple[Any, ...] = (),
+    path: bool = False,
+    lo_open: bool = False,
+) -> Any:
     """Field with its valid range: ``lo <= v <= hi`` (``lo < v`` with ``lo_open``)."""
-    return field(metadata={"lo": lo, "hi": hi, "choices": choices, "path": path, "lo_open": lo_open})
+    return field(
+        metadata={"lo": lo, "hi": hi, "choices": choices, "path": path, "lo_open": lo_open}
+    )
 
 
 @dataclass(frozen=True)
@@ -133,6 +141,10 @@ class DetectionConfig:
     standstill_residual_px: float = _p(0.0, lo_open=True)
     weight_floor: float = _p(0.0, 1.0)
     max_flow_px: float = _p(0.0, lo_open=True)
+    lk_noise_gain: float = _p(0.0, 1000.0)
+    baseline_frames: int = _p(1, 30)
+    image_noise_gray: float = _p(0.0, 255.0)
+    fb_noise_gain: float = _p(0.0, 1000.0)
 
 
 @dataclass(frozen=True)
@@ -215,6 +227,7 @@ class WarningConfig:
     moving_sigmas: float = _p(0.0, 100.0)
     moving_min_frames: int = _p(1, 1000)
     min_probability: float = _p(0.0, 1.0)
+    velocity_significance_sigmas: float = _p(0.0, 100.0)
 
 
 @dataclass(frozen=True)
@@ -253,7 +266,9 @@ class Config:
         text = json.dumps(dataclasses.asdict(self), sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
-    def with_overrides(self, overrides: dict[str, dict[str, Any]], source: str = "<overrides>") -> Config:
+    def with_overrides(
+        self, overrides: dict[str, dict[str, Any]], source: str = "<overrides>"
+    ) -> Config:
         """A copy with ``{section: {key: value}}`` applied and validated like a file."""
         raw = dataclasses.asdict(self)
         _merge(raw, overrides, source, {})
@@ -292,14 +307,17 @@ def load_config(path: str | Path | None = None) -> Config:
     """The default configuration, with the keys of ``path`` (if given) overriding it."""
     default_path = default_config_path()
     raw = read_toml(default_path)
-    origin: dict[str, dict[str, str]] = {s: {k: str(default_path) for k in v} for s, v in raw.items()}
+    origin: dict[str, dict[str, str]] = {
+        s: {k: str(default_path) for k in v} for s, v in raw.items()
+    }
     if path is not None:
         _merge(raw, read_toml(path), str(path), origin)
     return _build(raw, origin, default_path)
 
 
-def _merge(base: dict[str, Any], user: dict[str, Any], source: str,
-           origin: dict[str, dict[str, str]]) -> None:
+def _merge(
+    base: dict[str, Any], user: dict[str, Any], source: str, origin: dict[str, dict[str, str]]
+) -> None:
     sections = {f.name: f.type for f in dataclasses.fields(Config)}
     for section, values in user.items():
         if section not in sections:
@@ -319,7 +337,9 @@ def _section_types() -> dict[str, type]:
     return {f.name: hints[f.name] for f in dataclasses.fields(Config)}
 
 
-def _build(raw: dict[str, Any], origin: dict[str, dict[str, str]], default_path: Path | None) -> Config:
+def _build(
+    raw: dict[str, Any], origin: dict[str, dict[str, str]], default_path: Path | None
+) -> Config:
     sections: dict[str, Any] = {}
     for name, cls in _section_types().items():
         values = raw.get(name, {})
@@ -370,7 +390,11 @@ def _check(value: Any, typ: Any, meta: Any, src: str, key: str) -> Any:
         raise ConfigError(src, key, f"{value!r} is not one of {', '.join(map(repr, choices))}")
     lo, hi = meta.get("lo"), meta.get("hi")
     if lo is not None and (value <= lo if meta.get("lo_open") else value < lo):
-        raise ConfigError(src, key, f"{value!r} is out of range (must be {'>' if meta.get('lo_open') else '>='} {lo})")
+        raise ConfigError(
+            src,
+            key,
+            f"{value!r} is out of range (must be {'>' if meta.get('lo_open') else '>='} {lo})",
+        )
     if hi is not None and value > hi:
         raise ConfigError(src, key, f"{value!r} is out of range (must be <= {hi})")
     if meta.get("path") and isinstance(value, str):
@@ -389,23 +413,39 @@ def _check_cross(cfg: Config, origin: dict[str, dict[str, str]]) -> None:
         return origin.get(section, {}).get(key, "<config>")
 
     if len(cfg.camera.distortion) not in (0, 4, 5, 8, 12, 14):
-        raise ConfigError(src("camera", "distortion"), "camera.distortion",
-                          "needs 4, 5, 8, 12 or 14 coefficients (OpenCV k1 k2 p1 p2 [k3 ...])")
+        raise ConfigError(
+            src("camera", "distortion"),
+            "camera.distortion",
+            "needs 4, 5, 8, 12 or 14 coefficients (OpenCV k1 k2 p1 p2 [k3 ...])",
+        )
     if cfg.warning.ttc_warning_s > cfg.warning.ttc_caution_s:
-        raise ConfigError(src("warning", "ttc_warning_s"), "warning.ttc_warning_s",
-                          f"{cfg.warning.ttc_warning_s} must not exceed warning.ttc_caution_s "
-                          f"({cfg.warning.ttc_caution_s})")
+        raise ConfigError(
+            src("warning", "ttc_warning_s"),
+            "warning.ttc_warning_s",
+            f"{cfg.warning.ttc_warning_s} must not exceed warning.ttc_caution_s "
+            f"({cfg.warning.ttc_caution_s})",
+        )
     if cfg.probability_map.gauss_window_px % 2 == 0:
-        raise ConfigError(src("probability_map", "gauss_window_px"), "probability_map.gauss_window_px",
-                          f"{cfg.probability_map.gauss_window_px} must be odd")
+        raise ConfigError(
+            src("probability_map", "gauss_window_px"),
+            "probability_map.gauss_window_px",
+            f"{cfg.probability_map.gauss_window_px} must be odd",
+        )
     if cfg.refinement.min_correspondences < cfg.refinement.msac_sample_size:
-        raise ConfigError(src("refinement", "min_correspondences"), "refinement.min_correspondences",
-                          "must be at least refinement.msac_sample_size")
+        raise ConfigError(
+            src("refinement", "min_correspondences"),
+            "refinement.min_correspondences",
+            "must be at least refinement.msac_sample_size",
+        )
     if cfg.hmi_can.warning_id == cfg.hmi_can.status_id:
-        raise ConfigError(src("hmi_can", "status_id"), "hmi_can.status_id",
-                          "must differ from hmi_can.warning_id")
+        raise ConfigError(
+            src("hmi_can", "status_id"), "hmi_can.status_id", "must differ from hmi_can.warning_id"
+        )
     for section in ("camera", "vehicle_can", "hmi_can", "ptu"):
         sec = getattr(cfg, section)
         if sec.reopen_max_s < sec.reopen_min_s:
-            raise ConfigError(src(section, "reopen_max_s"), f"{section}.reopen_max_s",
-                              f"must be >= {section}.reopen_min_s")
+            raise ConfigError(
+                src(section, "reopen_max_s"),
+                f"{section}.reopen_max_s",
+                f"must be >= {section}.reopen_min_s",
+            )

@@ -20,7 +20,7 @@ Options (``--key=value``, as the benchmarks runner passes only dashed words):
 ``--recordings=DIR`` (recordings already made; default: simulate every scenario of
 ``appliance.sim.scenarios`` into a cache directory under the temp dir),
 ``--scenarios=a,b``, ``--duration=S`` (simulated seconds, default 5), ``--frames=N``
-(per recording), ``--seed=N``. The decision stage is replaced by ``prob_map = None``.
+(per recording), ``--seed=N``, ``--config=FILE`` (keys overriding the defaults). The decision stage is replaced by ``prob_map = None``.
 """
 
 from __future__ import annotations
@@ -145,7 +145,7 @@ def run(case: Case, mode: str, frames: int, seed: int, timing: bool) -> RunLog:
     cfg = case.cfg.with_overrides({"detection": {"likelihood": mode}})
     log = RunLog()
     patched = {"static_pool": "flow", "track": "flow", "_refine": "refinement",
-               "motion_cues": "detection", "next_particles": "detection"}
+               "motion_cues": "detection", "resample_particles": "detection"}
     saved = {name: getattr(P, name) for name in patched}
     dense = {"dense_fast": DenseBaseline(case.camera, cv2.DISOPTICAL_FLOW_PRESET_FAST),
              "dense_ultrafast": DenseBaseline(case.camera, cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST)}
@@ -349,9 +349,10 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--duration", type=float, default=5.0,
                     help="seconds simulated per scenario, ending at its event (default 5)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--config", help="configuration file overriding config/default.toml")
     args = ap.parse_args(argv)
     cv2.setNumThreads(1)
-    cfg = load_config()
+    cfg = load_config(args.config)
     cases = [open_case(p, cfg) for p in recordings(args, cfg)]
     rows: list[tuple[str, str, str]] = []
     speed: dict[str, list[float]] = {}

@@ -11,7 +11,8 @@ table with the issue's targets:
 * median relative TTC error <= 20 % and distance error <= 15 % in the last 3 s.
 
 Options: ``--seeds N``, ``--scenarios a,b``, ``--keep DIR`` (keep recordings and
-runs, with ``timeline.png``), ``--jobs N`` (parallel scenario runs; the machine
+runs, with ``timeline.png``; recordings already in DIR are replayed again, not
+simulated again), ``--jobs N`` (parallel scenario runs; the machine
 is shared, default 1), ``--config FILE`` (passed to replay).
 """
 
@@ -46,10 +47,11 @@ def one_run(name: str, seed: int, work: Path, config: str | None, plots: bool) -
     rec = work / f"{name}-seed{seed}"
     run = work / f"{name}-seed{seed}-run"
     steps = [
-        [*CLI, "simulate", name, "--out", str(rec), "--seed", str(seed)],
         [*CLI, "replay", str(rec), "--out", str(run), "--no-progress"]
         + (["--config", config] if config else []),
     ]
+    if not (rec / "truth.json").exists():  # a kept recording is reused (the simulator is seeded)
+        steps.insert(0, [*CLI, "simulate", name, "--out", str(rec), "--seed", str(seed)])
     for cmd in steps:
         p = subprocess.run(cmd, capture_output=True, text=True)
         if p.returncode != 0:

@@ -261,3 +261,33 @@ def test_particles_leaving_the_image_are_redrawn_not_piled_at_the_border(default
     assert np.all((out >= 0.0) & (out <= [639.0, 479.0]))
     near_corner = np.hypot(out[:, 0] - 639.0, out[:, 1] - 479.0) < 10.0
     assert 0.1 < near_corner.mean() < 0.5                  # about the quarter that stayed inside
+
+
+def test_flows_measured_along_an_edge_do_not_flag_motion(default_config: Config) -> None:
+    """A flow known only across the static direction (a lane marking pointing at the epipole)
+    says nothing about its length; one known only along it (a bumper) nothing about its angle."""
+    cfg = default_config.detection
+    uv = np.array([[420.0, 300.0], [420.0, 300.0]])
+    x_prev = road_correspondence(uv, 0.4)
+    static_flow = uv[0] - x_prev[0]
+    d = static_flow / np.linalg.norm(static_flow)
+    n = np.array([-d[1], d[0]])
+    short = uv - 0.05 * static_flow                  # 5 % of the road's flow: collision course?
+    skew = uv - np.linalg.norm(static_flow) * (0.5 * d + 0.866 * n)   # 60 degrees off the static direction
+
+    def cov(along: float, across: float) -> np.ndarray:
+        C = along * np.outer(d, d) + across * np.outer(n, n)
+        return np.tile([C[0, 0], C[0, 1], C[1, 1]], (2, 1))
+
+    sharp = cov(1e-4, 1e-4)
+    along_edge = cov(100.0, 1e-4)    # the flow's length is not measured
+    across_edge = cov(1e-4, 100.0)   # its angle is not
+    for c, mag, direc in ((sharp, True, True), (along_edge, False, True), (across_edge, True, False)):
+        m = motion_cues(short, uv, forward_motion(), ROAD, cfg, c)
+        s = motion_cues(skew, uv, forward_motion(), ROAD, cfg, c)
+        assert m.magnitude is not None and s.direction is not None
+        assert (m.magnitude[0] > 0.8) == mag and (m.magnitude[0] < 0.05) == (not mag)
+        assert (s.direction[0] > 0.8) == direc and (s.direction[0] < 0.05) == (not direc)
+    # no covariance: every flow gets sigma_p, as in the paper
+    paper = motion_cues(short, uv, forward_motion(), ROAD, cfg, None)
+    assert paper.magnitude is not None and paper.magnitude[0] > 0.8

@@ -91,6 +91,18 @@ def test_particles_gather_on_a_crossing_object(driven: list) -> None:  # type: i
     assert inside.sum() >= 2 * max(early, 1)
 
 
+def test_particles_gather_on_a_crossing_object_with_lineage_and_fb_noise(default_config: Config) -> None:
+    """The static-scene switches (weakest of 3 lineage links, FB error in the flow std) keep
+    the crossing object: its flow violates the static one frame after frame."""
+    cfg = default_config.with_overrides({"detection": {"baseline_frames": 3, "fb_noise_gain": 20.0,
+                                                       "image_noise_gray": 6.0}})
+    run = drive(cfg, 9, Scene(boxes=(CROSSING,)))
+    _, _, particles, box = run[-1]
+    high = particles.weights > 0.5
+    assert high.sum() >= 5
+    assert on_box(particles, box)[high].mean() > 0.9
+
+
 def test_standstill_gives_no_detections(default_config: Config) -> None:
     for _, ego, particles, _ in drive(default_config, 4, Scene(), speed=0.0):
         assert ego.standstill

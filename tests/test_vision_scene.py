@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from appliance.config import FlowConfig, load_config
 from appliance.vision import geometry as g
-from appliance.vision.flow import corner_candidates, track
+from appliance.vision.flow import FLOW_PRIOR_STD_PX, corner_candidates, flow_covariance, track
 
 
 def noise_texture(seed: int, size: int = 512) -> NDArray[np.float32]:
@@ -187,3 +187,37 @@ def test_lucas_kanade_measures_the_flow_of_a_known_camera_motion() -> None:
     # noisy (about 4 % of a 5 px flow) but unbiased
     assert np.median(np.linalg.norm(err, axis=1)) < 0.25
     assert np.all(np.abs(np.median(err, axis=0)) < 0.03)
+
+
+def test_lk_covariance_knows_the_aperture_problem_and_the_contrast() -> None:
+    """residual^2 G^-1: unknown along an edge, known across it, less certain in noise."""
+    cfg: FlowConfig = load_config().flow
+    rng = np.random.default_rng(3)
+    v = np.arange(480, dtype=np.float64)[:, None]
+    edge = np.repeat(128.0 + 60.0 * np.tanh((v - 240.0) / 3.0), 640, axis=1)   # a horizontal edge
+    prev = np.clip(edge + rng.normal(0.0, 1.0, edge.shape), 0, 255).astype(np.uint8)
+    pts = np.array([[200.0, 240.0], [400.0, 240.5]])
+    residual = np.full(2, 1.0)                            # gray levels, the noise
+    cov = flow_covariance(prev, pts, residual, cfg.window_px)
+    assert np.all(cov[:, 2] < 0.01)                       # across the edge: well measured
+    assert np.all(cov[:, 0] > 100.0 * cov[:, 2])          # along it: only the noise's texture
+    flat = np.full((480, 640), 128, np.uint8)
+    np.testing.assert_allclose(flow_covariance(flat, pts, residual, cfg.window_px),
+                               [[FLOW_PRIOR_STD_PX ** 2, 0.0, FLOW_PRIOR_STD_PX ** 2]] * 2)
+    lost = flow_covariance(prev, pts, np.array([np.inf, 2.0]), cfg.window_px)
+    assert lost[0, 0] == lost[0, 2] == FLOW_PRIOR_STD_PX ** 2
+
+    tex = cv2.resize(noise_texture(5), (640, 480))
+    shifted = np.float32([[1.0, 0.0, 1.3], [0.0, 1.0, -0.7]])
+    stds = []
+    for noise in (0.5, 16.0):
+        img1 = cv2.warpAffine(tex, shifted, (640, 480), borderMode=cv2.BORDER_REFLECT)
+        img0 = np.clip(tex + rng.normal(0, noise, tex.shape), 0, 255).astype(np.uint8)
+        img1 = np.clip(img1 + rng.normal(0, noise, tex.shape), 0, 255).astype(np.uint8)
+        grid = np.stack(np.meshgrid(np.arange(60.0, 580.0, 40.0), np.arange(60.0, 420.0, 40.0)),
+                        axis=-1).reshape(-1, 2)
+        tr = track(img0, img1, grid, np.ones(len(grid), bool), cfg)
+        c = flow_covariance(img0, grid, tr.residual, cfg.window_px)[tr.valid]
+        assert np.all(np.isfinite(c)) and len(c) > 0.9 * len(grid)
+        stds.append(float(np.median(np.sqrt(c[:, 0] + c[:, 2]))))
+    assert stds[1] > 1.5 * stds[0]                        # noisier images: less certain flows

@@ -34,7 +34,7 @@ from appliance.decision.scale_ttc import (
 )
 from appliance.decision.threat import (
     bumper_ttc, constant_bearing_course, fuse, ground_ttc_std, object_radius, outline_gap,
-    predict_path, scale_lateral_miss,
+    predict_path, scale_lateral_miss, significant_velocity,
 )
 from appliance.decision.tracking import ImageModel, ImageTrack, TrackerState, track_step
 from appliance.decision.warnings import TrackThreat, WarningState, warning_step
@@ -217,7 +217,8 @@ def assess(track: ImageTrack, cues: TrackCues, sensors: SensorSample, cfg: Confi
     depth: float | None = None
     g = cues.ground
     if g is not None:
-        pos, vel = g.position, g.velocity
+        pos = g.position
+        vel = significant_velocity(g.velocity, g.P, w.velocity_significance_sigmas)
         distance = float(outline_gap(pos, mount, 0.0))
         depth = float(pos[0] - mount.x_m)
         rng = float(np.hypot(pos[0] - mount.x_m, pos[1] - mount.y_m))

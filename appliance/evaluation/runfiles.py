@@ -55,6 +55,7 @@ class TruthObject:
     bbox: NDArray[np.float64]  # (N, 4)
     visible: NDArray[np.float64]  # (N,)
     pos: NDArray[np.float64]  # (N, 2), NaN where unknown
+    vel: NDArray[np.float64] | None = None  # (N, 2) m/s relative to the ego vehicle, NaN unknown
 
     def at(self, frame: int) -> int | None:
         """Row index of ``frame`` or None."""
@@ -69,6 +70,8 @@ class Truth:
     collision_t: float | None
     objects: tuple[TruthObject, ...]
     collision_object: int | None = None  # optional: the id of the colliding object
+    camera_frames: NDArray[np.int64] | None = None  # (F,) frames with a camera pose
+    camera_centres: NDArray[np.float64] | None = None  # (F, 3) camera centre in the world, m
 
 
 def _num(v: Any, where: str, key: str, *, optional: bool = True) -> float | None:
@@ -167,17 +170,46 @@ def parse_truth(data: dict[str, Any], where: str) -> Truth:
                         dtype=np.float64).reshape(-1, 4)
         visible = np.array([_num(v.get("visible", 1.0), where, f"{key}.visible", optional=False)
                             for _, v in items], dtype=np.float64)
-        pos = np.full((len(items), 2), np.nan)
-        for i, (_, v) in enumerate(items):
-            p = v.get("pos_vehicle")
-            if isinstance(p, list) and len(p) >= 2:
-                pos[i] = [_num(p[0], where, f"{key}.pos_vehicle", optional=False),
-                          _num(p[1], where, f"{key}.pos_vehicle", optional=False)]
+        pos = _vectors(items, "pos_vehicle", where, key)
+        vel = _vectors(items, "vel_vehicle", where, key)
         objects.append(TruthObject(id=int(obj.get("id", k)), cls=str(obj.get("class", "object")),
                                    moving=bool(obj.get("moving", True)), frames=frames, bbox=bbox,
-                                   visible=visible, pos=pos))
+                                   visible=visible, pos=pos, vel=vel))
     co = data.get("collision_object")
+    cam_frames, centres = _camera_centres(data.get("camera_poses"), where)
     return Truth(scenario=str(data.get("scenario", "?")), collision=collision, collision_t=ct,
                  objects=tuple(objects),
                  collision_object=int(co) if isinstance(co, int) and not isinstance(co, bool)
-                 else None)
+                 else None, camera_frames=cam_frames, camera_centres=centres)
+
+
+def _vectors(items: list[tuple[int, Any]], name: str, where: str, key: str
+             ) -> NDArray[np.float64]:
+    """(N, 2) of the per-frame 2-vector ``name`` (``pos_vehicle``, ``vel_vehicle``); NaN if absent."""
+    out = np.full((len(items), 2), np.nan)
+    for i, (_, v) in enumerate(items):
+        p = v.get(name)
+        if isinstance(p, list) and len(p) >= 2:
+            out[i] = [_num(p[0], where, f"{key}.{name}", optional=False),
+                      _num(p[1], where, f"{key}.{name}", optional=False)]
+    return out
+
+
+def _camera_centres(poses: Any, where: str
+                    ) -> tuple[NDArray[np.int64] | None, NDArray[np.float64] | None]:
+    """Frames (F,) and camera centres (F, 3) m of ``camera_poses`` (4x4 world-from-camera)."""
+    if not isinstance(poses, dict) or not poses:
+        return None, None
+    rows = []
+    for f, m in poses.items():
+        try:
+            T = np.asarray(m, dtype=np.float64)
+            frame = int(f)
+        except (TypeError, ValueError):
+            raise UsageError(f"{where}: camera_poses.{f} must be a 4x4 matrix") from None
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            raise UsageError(f"{where}: camera_poses.{f} must be a finite 4x4 matrix")
+        rows.append((frame, T[:3, 3]))
+    rows.sort(key=lambda r: r[0])
+    return (np.array([r[0] for r in rows], dtype=np.int64),
+            np.array([r[1] for r in rows], dtype=np.float64))

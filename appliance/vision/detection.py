@@ -106,12 +106,23 @@ def next_particles(x_cur: NDArray[np.floating], likelihood: NDArray[np.floating]
                    valid: NDArray[np.bool_], correction: NDArray[np.floating],
                    g: ImportanceDensity, cfg: DetectionConfig,
                    rng: np.random.Generator) -> tuple[FloatArray, FloatArray]:
+    """Fig. 4: resample, diffuse, add importance samples (:func:`resample_particles`
+    without the parents)."""
+    out, corr, _, _ = resample_particles(x_cur, likelihood, valid, correction, g, cfg, rng)
+    return out, corr
+
+
+def resample_particles(x_cur: NDArray[np.floating], likelihood: NDArray[np.floating],
+                       valid: NDArray[np.bool_], correction: NDArray[np.floating],
+                       g: ImportanceDensity, cfg: DetectionConfig, rng: np.random.Generator
+                       ) -> tuple[FloatArray, FloatArray, NDArray[np.int64], FloatArray]:
     """Fig. 4: resample, diffuse, add importance samples.
 
     x_cur: (N, 2) particle positions in the current frame (ends of the measured
     flow: the motion model of the prediction step); likelihood, valid, correction:
     (N,) each. Returns the positions (cfg.particles, 2) where flow is measured in
-    the next frame and their eq. 4 corrections (1 for resampled particles).
+    the next frame, their eq. 4 corrections (1 for resampled particles), the index
+    of each one's parent in x_cur (-1 for a sample of g) and its diffusion offset (px).
     With no valid particle (black frame, all tracks lost) every particle comes from g.
     """
     n = cfg.particles
@@ -123,10 +134,13 @@ def next_particles(x_cur: NDArray[np.floating], likelihood: NDArray[np.floating]
     n_res = n - n_imp
     out = np.empty((n, 2))
     corr = np.ones(n)
+    parent = np.full(n, -1, dtype=np.int64)
+    offset = np.zeros((n, 2))
     if n_res > 0:
         idx = systematic_resample(w / total, n_res, float(rng.random()))
-        moved = np.asarray(x_cur, dtype=np.float64)[idx] + rng.normal(0.0, cfg.diffusion_px, (n_res, 2))
-        out[:n_res] = moved
+        offset[:n_res] = rng.normal(0.0, cfg.diffusion_px, (n_res, 2))
+        out[:n_res] = np.asarray(x_cur, dtype=np.float64)[idx] + offset[:n_res]
+        parent[:n_res] = idx
     # particles diffused out of the image are drawn from g instead (clipping them to the
     # border would pile them up in the corners, where the flow leaves the image)
     outside = np.zeros(n, dtype=bool)
@@ -136,4 +150,5 @@ def next_particles(x_cur: NDArray[np.floating], likelihood: NDArray[np.floating]
     fresh = g.sample(rng, int(outside.sum()))
     out[outside] = fresh
     corr[outside] = g.correction(fresh)
-    return out, corr
+    parent[outside] = -1
+    return out, corr, parent, offset

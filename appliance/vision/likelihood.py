@@ -117,14 +117,16 @@ def _angular_error(sigma: float, d: FloatArray) -> FloatArray:
 
 
 def direction_cue(flow_t: FloatArray, static_dir: FloatArray, d_e: FloatArray,
-                  cfg: DetectionConfig) -> FloatArray:
+                  cfg: DetectionConfig, sigma_p: FloatArray | None = None) -> FloatArray:
     """Eqs. 5-6: flow_t (N, 2) translational flow, static_dir (N, 2) direction a static
-    point's flow must have, d_e (N,) distance to the epipole (px; inf when at infinity)."""
+    point's flow must have, d_e (N,) distance to the epipole (px; inf when at infinity);
+    sigma_p (N,) px: each flow's std across the static direction (``cfg.sigma_p_px`` if None)."""
     d_l = np.hypot(flow_t[:, 0], flow_t[:, 1])
     cross = flow_t[:, 0] * static_dir[:, 1] - flow_t[:, 1] * static_dir[:, 0]
     dot = flow_t[:, 0] * static_dir[:, 0] + flow_t[:, 1] * static_dir[:, 1]
     alpha = np.arctan2(np.abs(cross), dot)
-    sigma_l = _angular_error(cfg.sigma_e_px, d_e) + _angular_error(cfg.sigma_p_px, d_l)  # eq. 5
+    sp = cfg.sigma_p_px if sigma_p is None else sigma_p
+    sigma_l = _angular_error(cfg.sigma_e_px, d_e) + _angular_error(sp, d_l)  # eq. 5
     p = 1.0 - np.exp(-alpha**2 / (2.0 * sigma_l**2))                                   # eq. 6
     defined = (d_l >= cfg.min_flow_px) & (d_e >= cfg.epipole_radius_px)
     return np.where(defined & np.isfinite(p), p, 0.0)
@@ -150,17 +152,20 @@ def road_static_flow(x_cur: FloatArray, motion: CameraMotion, road: RoadPlane | 
     return np.where((depth_prev > 0.0)[:, None], f_s, np.nan)
 
 
-def magnitude_cue_from_static(flow_t: FloatArray, f_s: FloatArray, cfg: DetectionConfig) -> FloatArray:
+def magnitude_cue_from_static(flow_t: FloatArray, f_s: FloatArray, cfg: DetectionConfig,
+                              sigma_p: FloatArray | None = None) -> FloatArray:
     """Cue from the deficit ``delta = |f_s| - flow_t . f_s / |f_s|`` (px) of the measured flow.
 
-    Its std is ``hypot(magnitude_sigma |f_s|, sigma_p)``; cue ``1 - exp(-delta+^2 / 2 std^2)``;
+    Its std is ``hypot(magnitude_sigma |f_s|, sigma_p)`` (sigma_p (N,) px: each flow's std
+    along ``f_s``, ``cfg.sigma_p_px`` if None); cue ``1 - exp(-delta+^2 / 2 std^2)``;
     0 where ``f_s`` is NaN (no road behind the pixel, no metric translation).
     """
+    sp = cfg.sigma_p_px if sigma_p is None else sigma_p
     with np.errstate(divide="ignore", invalid="ignore"):
         length = np.hypot(f_s[:, 0], f_s[:, 1])
         along = (flow_t[:, 0] * f_s[:, 0] + flow_t[:, 1] * f_s[:, 1]) / length
         deficit = np.maximum(length - along, 0.0)
-        std = np.hypot(cfg.magnitude_sigma * length, cfg.sigma_p_px)
+        std = np.hypot(cfg.magnitude_sigma * length, sp)
         p = 1.0 - np.exp(-deficit**2 / (2.0 * std**2))
     return np.where(np.isfinite(p), p, 0.0)
 
@@ -178,9 +183,49 @@ def standstill_cue(flow_t: FloatArray, cfg: DetectionConfig) -> FloatArray:
     return np.where(np.isfinite(r), 1.0 - np.exp2(-(r**2)), 0.0)
 
 
+def flow_std(flow_cov: FloatArray | None, static_dir: FloatArray, cfg: DetectionConfig
+             ) -> tuple[FloatArray | None, FloatArray | None]:
+    """Each flow's std (px) across and along the static direction, or (None, None).
+
+    ``sigma_p`` of eq. 5 is "the accuracy of the tracking process"; the paper gives one
+    number for every flow. A flow measured along an edge (lane marking, kerb, bumper) is
+    only known across the edge, one in low contrast or across an occlusion boundary
+    (large LK residual) is poorly known both ways. So each flow gets
+    ``sqrt(sigma_p^2 + d^T C d)`` with C (N, 3) px^2 its LK covariance
+    (``flow.flow_covariance``, scaled as :func:`lk_covariance` says) and d the unit
+    vector across / along the static direction (C None: the paper's constant sigma_p).
+    """
+    if flow_cov is None:
+        return None, None
+    n = np.hypot(static_dir[:, 0], static_dir[:, 1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        du, dv = static_dir[:, 0] / n, static_dir[:, 1] / n
+    du = np.where(np.isfinite(du), du, 1.0)
+    dv = np.where(np.isfinite(dv), dv, 0.0)
+    c_uu, c_uv, c_vv = flow_cov[:, 0], flow_cov[:, 1], flow_cov[:, 2]
+    with np.errstate(invalid="ignore"):
+        along = c_uu * du * du + 2.0 * c_uv * du * dv + c_vv * dv * dv
+        across = c_uu * dv * dv - 2.0 * c_uv * du * dv + c_vv * du * du
+    sp2 = cfg.sigma_p_px ** 2
+
+    def std(var: FloatArray) -> FloatArray:
+        var = np.where(np.isnan(var), np.inf, np.maximum(var, 0.0))
+        return np.sqrt(sp2 + var)
+
+    return std(across), std(along)
+
+
+def beyond_reach(f_s: FloatArray, cfg: DetectionConfig) -> NDArray[np.bool_]:
+    """(N,) True where the road's static flow f_s (N, 2) px is longer than ``max_flow_px``."""
+    with np.errstate(invalid="ignore"):
+        return np.asarray(np.hypot(f_s[:, 0], f_s[:, 1]) > cfg.max_flow_px)
+
+
 def motion_cues(x_prev: NDArray[np.floating], x_cur: NDArray[np.floating], motion: CameraMotion,
-                road: RoadPlane | None, cfg: DetectionConfig) -> Cues:
-    """All cues at N measurements ``x_prev -> x_cur`` (ideal pixels, (N, 2) each)."""
+                road: RoadPlane | None, cfg: DetectionConfig,
+                flow_cov: FloatArray | None = None) -> Cues:
+    """All cues at N measurements ``x_prev -> x_cur`` (ideal pixels, (N, 2) each);
+    flow_cov (N, 3) px^2: each flow's LK covariance (:func:`flow_std`), or None."""
     x_prev = np.asarray(x_prev, dtype=np.float64).reshape(-1, 2)
     x_cur = np.asarray(x_cur, dtype=np.float64).reshape(-1, 2)
     p = derotate(motion.K, motion.R, x_prev)
@@ -194,13 +239,13 @@ def motion_cues(x_prev: NDArray[np.floating], x_cur: NDArray[np.floating], motio
         d_e = np.hypot(p[:, 0] - e[0], p[:, 1] - e[1])
     else:
         d_e = np.full(len(p), np.inf)
-    direction = direction_cue(flow_t, static_dir, d_e, cfg)
+    s_across, s_along = flow_std(flow_cov, static_dir, cfg)
+    direction = direction_cue(flow_t, static_dir, d_e, cfg, s_across)
     f_s = road_static_flow(x_cur, motion, road)
-    magnitude = magnitude_cue_from_static(flow_t, f_s, cfg)
+    magnitude = magnitude_cue_from_static(flow_t, f_s, cfg, s_along)
     # where even the shortest static flow is beyond the reach of pyramidal LK, a measured
     # flow says nothing (typically the bottom of the image at speed): both cues are 0
-    with np.errstate(invalid="ignore"):
-        unreachable = np.hypot(f_s[:, 0], f_s[:, 1]) > cfg.max_flow_px
+    unreachable = beyond_reach(f_s, cfg)
     direction = np.where(unreachable, 0.0, direction)
     magnitude = np.where(unreachable, 0.0, magnitude)
     return Cues(direction, magnitude, None)

@@ -19,9 +19,10 @@ from numpy.typing import NDArray
 from appliance.config import Config
 from appliance.errors import UsageError
 from appliance.messages import EgoMotion, Frame, ParticleSet, ProbabilityMap, SensorSample
-from appliance.vision.detection import ImportanceDensity, next_particles, road_importance
+from appliance.vision.baseline import advance_history, inherit_history, lineage_weight
+from appliance.vision.detection import ImportanceDensity, resample_particles, road_importance
 from appliance.vision.epipolar import translation_from_theta
-from appliance.vision.flow import corner_candidates, track
+from appliance.vision.flow import corner_candidates, lk_covariance, track
 from appliance.vision.geometry import (
     FloatArray,
     PinholeCamera,
@@ -52,7 +53,9 @@ class VisionState:
     correction: (N,) eq. 4 factor of each particle (1 unless drawn from g);
     attitude: (3, 3) estimated rotation from the nominal camera (mount + PTU on a
     level vehicle) to the actual one (body pitch/roll), used for the road plane;
-    seed, frames: the random generator of frame k is ``default_rng([seed, k])``.
+    seed, frames: the random generator of frame k is ``default_rng([seed, k])``;
+    history: (N, k-1) likelihoods of each particle's lineage in the k-1 frames before
+    (newest first, NaN: unknown; ``baseline``, k = ``detection.baseline_frames``).
     """
 
     seed: int
@@ -63,6 +66,7 @@ class VisionState:
     particles: FloatArray
     correction: FloatArray
     attitude: FloatArray
+    history: FloatArray
 
 
 def _rng(seed: int, k: int) -> np.random.Generator:
@@ -74,7 +78,12 @@ def init_vision_state(cfg: Config, camera: PinholeCamera, seed: int) -> VisionSt
     g = _importance(cfg, camera, None)
     particles = g.sample(_rng(seed, 0), cfg.detection.particles)
     return VisionState(seed=seed, frames=0, prev_image=None, prev_t=math.nan, prev_sensors=None,
-                       particles=particles, correction=g.correction(particles), attitude=np.eye(3))
+                       particles=particles, correction=g.correction(particles), attitude=np.eye(3),
+                       history=_no_history(len(particles), cfg))
+
+
+def _no_history(n: int, cfg: Config) -> FloatArray:
+    return np.full((n, cfg.detection.baseline_frames - 1), np.nan)
 
 
 def _gray(frame: Frame, camera: PinholeCamera) -> NDArray[np.uint8]:
@@ -208,12 +217,18 @@ def perceive(state: VisionState, frame: Frame, sensors: SensorSample,
     # detection (section 2)
     valid = tracks.valid[:n]
     motion = CameraMotion(R=R, t_dir=t_dir, t_m=t_m, standstill=prior.standstill, K=camera.K)
-    cues = motion_cues(ideal_start[:n], ideal_end[:n], motion, road, cfg.detection)
-    weights = np.where(valid, np.clip(combine(cues, cfg.detection.likelihood), 0.0, 1.0), 0.0)
+    cov = lk_covariance(state.prev_image, state.particles, tracks.residual[:n], cfg.flow.window_px,
+                        cfg.detection.lk_noise_gain, cfg.detection.image_noise_gray,
+                        tracks.fb_error[:n], cfg.detection.fb_noise_gain)
+    cues = motion_cues(ideal_start[:n], ideal_end[:n], motion, road, cfg.detection, cov)
+    likelihood = np.where(valid, np.clip(combine(cues, cfg.detection.likelihood), 0.0, 1.0), 0.0)
+    history = _no_history(n, cfg) if prior.standstill else state.history
+    weights = lineage_weight(likelihood, history)
     end = tracks.end[:n]
     g = _importance(cfg, camera, road)
-    particles, correction = next_particles(end, weights, valid, state.correction, g,
-                                           cfg.detection, rng)
+    particles, correction, parent, offset = resample_particles(end, weights, valid, state.correction,
+                                                               g, cfg.detection, rng)
+    history = inherit_history(advance_history(history, likelihood, valid), parent)
 
     prior_dir = _unit(prior.t_m)
     ego = EgoMotion(rotation=theta[2:].copy(), translation_dir=t_dir, epipole_px=_epipole(camera, t_dir),
@@ -224,5 +239,6 @@ def perceive(state: VisionState, frame: Frame, sensors: SensorSample,
                       valid=valid.copy())
     new = VisionState(seed=state.seed, frames=state.frames + 1, prev_image=image, prev_t=frame.t,
                       prev_sensors=sensors, particles=particles, correction=correction,
-                      attitude=attitude)
+                      attitude=attitude, history=history)
     return new, ego, out
+

@@ -28,7 +28,6 @@ from appliance.runtime.sd_notify import SdNotifier
 from appliance.runtime.supervisor import LiveInputs, Supervisor, run_summary
 from appliance.runtime.wiring import hmi_writer, ptu_driver, vehicle_reader
 from drivers.camera import create_source
-from drivers.ptu import PtuSample
 
 log = logging.getLogger("collision-warning")
 
@@ -56,13 +55,7 @@ def build_inputs(
     ).start()
     ptu = None
     if p.enabled:
-
-        def ptu_sink(sample: PtuSample) -> None:
-            sup.ptu_ring.put(sample)
-            if recorder is not None:
-                recorder.add_ptu(sample)
-
-        ptu = ptu_driver(cfg, p.port, ptu_sink).start()
+        ptu = ptu_driver(cfg, p.port, sup.add_ptu).start()
     hmi = hmi_writer(cfg, out_dir / "can_out.log").start()
     players: list[Any] = [recorder] if recorder is not None else []
     return LiveInputs(

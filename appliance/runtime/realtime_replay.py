@@ -124,11 +124,6 @@ def play_live(
     outputs = RunOutputs(out, can_log=False)
     sup = Supervisor(cfg, outputs, notifier=notifier, on_event=on_event, recorder=recorder)
 
-    def ptu_sink(sample: PtuSample) -> None:
-        sup.ptu_ring.put(sample)
-        if recorder is not None:
-            recorder.add_ptu(sample)
-
     first = float(rec.frame_times[0])
     first_can = next(iter(rec.can_messages()), None)
     t0_rec = min(first, first_can.timestamp) if first_can is not None else first
@@ -153,7 +148,7 @@ def play_live(
         hmi = hmi_writer(cfg, out / "can_out.log", bus=buses.hmi).start()
         if ptu_simulator:
             sim = PtuSimulator().start()
-            ptu = ptu_at_start(cfg, sim.port, ptu_sink, track)
+            ptu = ptu_at_start(cfg, sim.port, sup.add_ptu, track)
         clock = PlaybackClock(t0_rec, time.monotonic() + START_LEAD_S, rate)
         if recorder is not None:
             recorder.to_recording = clock.recording
@@ -166,7 +161,7 @@ def play_live(
             if ptu is not None:  # the simulator turns as the recording's PTU did
                 players.append(PtuCommander(track, ptu, clock).start())
             else:
-                players.append(PtuPlayer(track, ptu_sink, clock).start())
+                players.append(PtuPlayer(track, sup.add_ptu, clock).start())
         if sim is not None:
             players.append(sim)
         camera = RecordingSource(

@@ -49,6 +49,8 @@ class Stoppable(Protocol):
 class Recorder(Protocol):
     def add_frame(self, frame: CameraFrame) -> None: ...
 
+    def add_ptu(self, sample: PtuSample) -> None: ...
+
 
 @dataclass
 class LiveInputs:
@@ -117,6 +119,12 @@ class Supervisor:
         self.failure: BaseException | None = None
 
     # ------------------------------------------------------------------ public
+
+    def add_ptu(self, sample: PtuSample) -> None:
+        """The PTU driver's (or player's) sink: into :attr:`ptu_ring`, and recorded."""
+        self.ptu_ring.put(sample)
+        if self.recorder is not None:
+            self.recorder.add_ptu(sample)
 
     def run(self, inputs: LiveInputs, max_seconds: float | None = None) -> RunStats:
         """Run until :attr:`stop_event` is set (a signal), a recording source ends or

@@ -109,7 +109,7 @@ def horizon_row(road: RoadPlane, K: FloatArray) -> float | None:
     return float(K[1, 2] - K[1, 1] * n[2] / n[1])
 
 
-def _angular_error(sigma: float, d: FloatArray) -> FloatArray:
+def _angular_error(sigma: float | FloatArray, d: FloatArray) -> FloatArray:
     """``arcsin(sigma / d)`` of eq. 5, continued as ``(pi/2) sigma / d`` beyond sigma = d (rad)."""
     with np.errstate(divide="ignore"):
         ratio = sigma / np.maximum(d, 1e-12)

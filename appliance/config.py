@@ -145,6 +145,9 @@ class DetectionConfig:
     baseline_frames: int = _p(1, 30)
     image_noise_gray: float = _p(0.0, 255.0)
     fb_noise_gain: float = _p(0.0, 1000.0)
+    foot_probability: float = _p(0.0, 1.0)
+    foot_gap_px: float = _p(0.0, 480.0)
+    foot_max_height_m: float = _p(0.5, 5.0)
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,10 @@ Options (``--key=value``, as the benchmarks runner passes only dashed words):
 ``--recordings=DIR`` (recordings already made; default: simulate every scenario of
 ``appliance.sim.scenarios`` into a cache directory under the temp dir),
 ``--scenarios=a,b``, ``--duration=S`` (simulated seconds, default 5), ``--frames=N``
-(per recording), ``--seed=N``, ``--config=FILE`` (keys overriding the defaults). The decision stage is replaced by ``prob_map = None``.
+(per recording), ``--seed=N``, ``--config=FILE`` (keys overriding the defaults). As in the
+pipeline, each frame's particles go through the spatio-temporal filter (the decision's first
+stage) and the resulting p(x) is the next frame's input (MSAC sampling, foot points); the rest
+of the decision stage is not run.
 """
 
 from __future__ import annotations
@@ -39,7 +42,8 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from appliance.config import Config, load_config
-from appliance.messages import EgoMotion, Frame, ParticleSet, SensorSample
+from appliance.decision.probability_map import spatio_temporal_filter
+from appliance.messages import EgoMotion, Frame, ParticleSet, ProbabilityMap, SensorSample
 from appliance.recording import Recording, apply_meta
 from appliance.runtime.sensor_sync import SensorSync
 from appliance.runtime.wiring import vehicle_decoder
@@ -152,16 +156,20 @@ def run(case: Case, mode: str, frames: int, seed: int, timing: bool) -> RunLog:
     state = P.init_vision_state(cfg, case.camera, seed)
     prev: np.ndarray | None = None
     prev_t = math.nan
+    prob_map: ProbabilityMap | None = None
     try:
         for frame, sensors in sensor_frames(case, frames):
             if timing and prev is not None:
                 for name, key in patched.items():
                     setattr(P, name, _timed(log, key, saved[name]))
             t0 = time.perf_counter()
-            state, ego, particles = P.perceive(state, frame, sensors, None, cfg, case.camera)
+            state, ego, particles = P.perceive(state, frame, sensors, prob_map, cfg, case.camera)
             t1 = time.perf_counter()
             for name in patched:
                 setattr(P, name, saved[name])
+            p = spatio_temporal_filter(None if prob_map is None else prob_map.p, particles,
+                                       ego.rotation, case.camera, cfg.probability_map)
+            prob_map = ProbabilityMap(p=p, scale=cfg.probability_map.scale)
             if prev is not None:
                 log.ego.append(ego)
                 log.particles.append(particles)

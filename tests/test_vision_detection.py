@@ -23,10 +23,12 @@ from appliance.vision.likelihood import (
     RoadPlane,
     combine,
     direction_cue,
+    foot_points,
     horizon_row,
     magnitude_cue,
     motion_cues,
     road_depth,
+    road_static_flow,
     standstill_cue,
 )
 
@@ -105,6 +107,48 @@ def test_magnitude_cue_flags_flow_much_shorter_than_the_road_allows(default_conf
     assert p[3] == 0.0
     unknown = CameraMotion(np.eye(3), FORWARD, None, False, K)   # CAN lost: no metric step
     np.testing.assert_array_equal(magnitude_cue(flow_t, uv, unknown, ROAD, cfg), 0.0)
+
+
+def test_foot_point_is_the_bottom_of_the_run_the_pixel_stands_on() -> None:
+    p = np.zeros((12, 4))          # map at 1/4: 48 x 16 px
+    p[5:9, 1] = 0.8                # an object in column 1, cells 5-8 (px 20-35)
+    p[2:4, 2] = 0.8                # a blob in column 2 with nothing below
+    uv = np.array([[5.0, 22.0],    # inside the object's run
+                   [6.0, 14.0],    # 6 px above its top (cell 3, run starts at cell 5: 8 px)
+                   [6.0, 2.0],     # far above it: a facade, not the object
+                   [5.0, 40.0],    # below it
+                   [9.0, 0.0],     # column 2: the run below starts 8 px down, ends at cell 3
+                   [13.0, 5.0]])   # column 3: no run
+    feet = foot_points(p, 4, uv, 0.5, 48, gap_px=8.0)
+    np.testing.assert_allclose(feet[:2], [[5.0, 35.0], [6.0, 35.0]])
+    assert np.all(np.isnan(feet[2:4]))
+    np.testing.assert_allclose(feet[4], [9.0, 15.0])
+    assert np.all(np.isnan(feet[5]))
+    tight = foot_points(p, 4, uv, 0.5, 48, gap_px=0.0)   # only pixels inside a run
+    assert np.isnan(tight[1, 0]) and tight[0, 1] == 35.0
+
+
+def test_a_pixel_above_the_horizon_takes_the_depth_of_its_foot_point(default_config: Config) -> None:
+    foot = np.array([[420.0, 239.5 + 35.0]] * 3)            # road at 26 m
+    uv = np.array([[420.0, 239.5 + 10.0],                    # below the horizon: its own road
+                   [420.0, 239.5 - 20.0],                    # 1.3 + 26 * 20/700 = 2.04 m up
+                   [420.0, 239.5 - 10.0]])                   # 1.67 m up
+    motion = forward_motion()
+    plain = road_static_flow(uv, motion, ROAD)
+    assert np.all(np.isnan(plain[1:]))                       # no road behind: no bound
+    with_foot = road_static_flow(uv, motion, ROAD, foot, max_height_m=2.0)
+    np.testing.assert_allclose(with_foot[0], plain[0])
+    assert np.isnan(with_foot[1, 0])                         # taller than a road user
+    Z = HEIGHT * 20.0                                        # 26 m: the foot's depth
+    expected = (K @ motion.t_m)[:2] - motion.t_m[2] * uv[2]
+    np.testing.assert_allclose(with_foot[2], expected / (Z - motion.t_m[2]))
+    # a head that keeps its bearing (no flow) is independent motion once its foot is known
+    cfg = default_config.detection
+    still = np.zeros((3, 2))
+    plain_cues = motion_cues(uv - still, uv, motion, ROAD, cfg)
+    foot_cues = motion_cues(uv - still, uv, motion, ROAD, cfg, foot=foot)
+    assert plain_cues.magnitude is not None and foot_cues.magnitude is not None
+    assert plain_cues.magnitude[2] == 0.0 and foot_cues.magnitude[2] > 0.8
 
 
 def test_standstill_cue_is_half_at_the_configured_residual(default_config: Config) -> None:

@@ -25,8 +25,10 @@ Degenerate cases, handled explicitly:
 * eq. 5's ``arcsin(sigma / d)`` is continued past ``sigma > d`` as
   ``(pi/2) sigma / d``, so a flow shorter than its own noise gets an ever wider
   sigma_l and an ever weaker direction cue instead of a NaN;
-* above the horizon (no road behind the pixel) or without a metric translation
-  (CAN missing) the magnitude cue is 0;
+* above the horizon there is no road behind the pixel: the magnitude cue takes the
+  depth of the pixel's foot point, the bottom of the previous p(x) region it stands on
+  (:func:`foot_points`, ``foot_probability``; at most ``foot_max_height_m`` above the
+  road), and is 0 where there is none; without a metric translation (CAN missing) it is 0;
 * where the road's static flow (a lower bound of any static flow there) is longer
   than ``max_flow_px``, pyramidal LK cannot have measured it: both cues are 0;
 * at a standstill only the standstill cue is used, whatever the mode.
@@ -132,19 +134,31 @@ def direction_cue(flow_t: FloatArray, static_dir: FloatArray, d_e: FloatArray,
     return np.where(defined & np.isfinite(p), p, 0.0)
 
 
-def road_static_flow(x_cur: FloatArray, motion: CameraMotion, road: RoadPlane | None) -> FloatArray:
+def road_static_flow(x_cur: FloatArray, motion: CameraMotion, road: RoadPlane | None,
+                     foot: FloatArray | None = None, max_height_m: float = 2.0) -> FloatArray:
     """Translational flow (N, 2) px of a road point seen at ``x_cur``: the shortest static flow there.
 
     A static point seen at ``x_cur`` at depth Z has ``f_s = ((K t)_xy - t_z x_cur) / (Z - t_z)``
     (t metric). Below the horizon nothing static is farther than the road, so with Z the
     road depth this is a lower bound on the length of any static flow at that pixel.
-    NaN above the horizon, without a road model or without a metric translation.
+    NaN above the horizon, without a road model or without a metric translation; with
+    ``foot`` (N, 2) ideal px (NaN: none), a pixel above the horizon takes the road depth of
+    its foot point instead (an upright object standing there, its depth that of its foot),
+    if the pixel is then at most ``max_height_m`` above the road (no road user is taller).
     """
     n = x_cur.shape[0]
     if motion.t_m is None or road is None:
         return np.full((n, 2), np.nan)
     K, t = motion.K, motion.t_m
     Z = road_depth(road, K, x_cur)
+    if foot is not None:  # above the horizon: the depth of the object's foot point below
+        Zf = road_depth(road, K, foot)
+        rx = (x_cur[:, 0] - K[0, 2]) / K[0, 0]
+        ry = (x_cur[:, 1] - K[1, 2]) / K[1, 1]
+        rise = rx * road.normal[0] + ry * road.normal[1] + road.normal[2]   # n . ray, ray z = 1
+        with np.errstate(invalid="ignore"):
+            upright = road.height_m + Zf * rise <= max_height_m  # no taller than a mover
+        Z = np.where(np.isnan(Z) & upright, Zf, Z)
     Kt = K @ t
     with np.errstate(divide="ignore", invalid="ignore"):
         depth_prev = Z - t[2]
@@ -223,7 +237,7 @@ def beyond_reach(f_s: FloatArray, cfg: DetectionConfig) -> NDArray[np.bool_]:
 
 def motion_cues(x_prev: NDArray[np.floating], x_cur: NDArray[np.floating], motion: CameraMotion,
                 road: RoadPlane | None, cfg: DetectionConfig,
-                flow_cov: FloatArray | None = None) -> Cues:
+                flow_cov: FloatArray | None = None, foot: FloatArray | None = None) -> Cues:
     """All cues at N measurements ``x_prev -> x_cur`` (ideal pixels, (N, 2) each);
     flow_cov (N, 3) px^2: each flow's LK covariance (:func:`flow_std`), or None."""
     x_prev = np.asarray(x_prev, dtype=np.float64).reshape(-1, 2)
@@ -241,7 +255,7 @@ def motion_cues(x_prev: NDArray[np.floating], x_cur: NDArray[np.floating], motio
         d_e = np.full(len(p), np.inf)
     s_across, s_along = flow_std(flow_cov, static_dir, cfg)
     direction = direction_cue(flow_t, static_dir, d_e, cfg, s_across)
-    f_s = road_static_flow(x_cur, motion, road)
+    f_s = road_static_flow(x_cur, motion, road, foot, cfg.foot_max_height_m)
     magnitude = magnitude_cue_from_static(flow_t, f_s, cfg, s_along)
     # where even the shortest static flow is beyond the reach of pyramidal LK, a measured
     # flow says nothing (typically the bottom of the image at speed): both cues are 0
@@ -267,3 +281,33 @@ def combine(cues: Cues, mode: str) -> FloatArray:
     if mode == "combined":
         return 1.0 - (1.0 - cues.direction) * (1.0 - cues.magnitude)
     raise ValueError(f"unknown likelihood mode {mode!r} (direction, magnitude or combined)")
+
+
+def foot_points(p: NDArray[np.floating], scale: int, uv: NDArray[np.floating], threshold: float,
+                height: int, gap_px: float) -> FloatArray:
+    """Foot point (N, 2) image px of each pixel uv (N, 2), from the previous frame's p(x).
+
+    In uv's column of the map (``scale`` px per cell), the run of cells with
+    ``p >= threshold`` that contains uv or starts at most ``gap_px`` below it is the
+    object uv stands on; its bottom edge is the foot point. NaN where no such run
+    exists: a pixel is only given the depth of an object it touches, so the region
+    grows up an object frame by frame instead of jumping to a facade far above it.
+    Vectorised: per column, the next hit row and the next miss row at or below
+    every row are running minima from the bottom.
+    """
+    hit = np.asarray(p) >= threshold
+    h, w = hit.shape
+    rows = np.arange(h)[:, None]
+    next_hit = np.minimum.accumulate(np.where(hit, rows, h)[::-1], axis=0)[::-1]
+    next_miss = np.minimum.accumulate(np.where(hit, h, rows)[::-1], axis=0)[::-1]
+    uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
+    out = np.full(uv.shape, np.nan)
+    inside = np.all(np.isfinite(uv), axis=1) & (uv[:, 0] >= 0) & (uv[:, 1] >= 0)
+    r = np.clip(np.where(inside, uv[:, 1], 0) // scale, 0, h - 1).astype(np.int64)
+    c = np.clip(np.where(inside, uv[:, 0], 0) // scale, 0, w - 1).astype(np.int64)
+    top = next_hit[r, c]
+    ok = inside & (top < h) & ((top - r) * scale <= gap_px)
+    bottom = next_miss[np.minimum(top, h - 1), c]          # first cell below the run
+    out[ok, 0] = uv[ok, 0]
+    out[ok, 1] = np.minimum(bottom[ok] * scale - 1, height - 1)
+    return out

@@ -31,7 +31,14 @@ from appliance.vision.geometry import (
     matrix_to_euler,
     vehicle_from_camera_rotation,
 )
-from appliance.vision.likelihood import CameraMotion, RoadPlane, combine, horizon_row, motion_cues
+from appliance.vision.likelihood import (
+    CameraMotion,
+    RoadPlane,
+    combine,
+    foot_points,
+    horizon_row,
+    motion_cues,
+)
 from appliance.vision.msac import weighted_minimal_samples
 from appliance.vision.prior import PriorMotion, prior_motion
 from appliance.vision.refinement import MapProblem, refine_motion
@@ -220,7 +227,14 @@ def perceive(state: VisionState, frame: Frame, sensors: SensorSample,
     cov = lk_covariance(state.prev_image, state.particles, tracks.residual[:n], cfg.flow.window_px,
                         cfg.detection.lk_noise_gain, cfg.detection.image_noise_gray,
                         tracks.fb_error[:n], cfg.detection.fb_noise_gain)
-    cues = motion_cues(ideal_start[:n], ideal_end[:n], motion, road, cfg.detection, cov)
+    foot = None
+    if prob_map is not None and cfg.detection.foot_probability > 0.0:
+        feet = foot_points(prob_map.p, prob_map.scale, tracks.end[:n],
+                           cfg.detection.foot_probability, camera.height,
+                           cfg.detection.foot_gap_px)
+        foot = camera.undistort(np.nan_to_num(feet, nan=0.0))
+        foot[np.isnan(feet[:, 0])] = np.nan
+    cues = motion_cues(ideal_start[:n], ideal_end[:n], motion, road, cfg.detection, cov, foot)
     likelihood = np.where(valid, np.clip(combine(cues, cfg.detection.likelihood), 0.0, 1.0), 0.0)
     history = _no_history(n, cfg) if prior.standstill else state.history
     weights = lineage_weight(likelihood, history)

@@ -194,6 +194,9 @@ class TrackingConfig:
     max_missed: int = _p(1, 1000)
     merge_px: float = _p(0.0)
     box_size_alpha: float = _p(0.0, 1.0, lo_open=True)
+    reacquire_s: float = _p(0.0, 10.0)
+    reacquire_gate_sigmas: float = _p(0.0, lo_open=True)
+    reacquire_gate_m: float = _p(0.0, lo_open=True)
 
 
 @dataclass(frozen=True)
@@ -210,6 +213,7 @@ class GroundConfig:
     scale_process_std: float = _p(0.0, 100.0)
     gate_sigmas: float = _p(0.0, 100.0, lo_open=True)
     memory_s: float = _p(0.0, 1000.0)
+    bearing_rate_std_rad_s: float = _p(0.0, 10.0)
 
 
 @dataclass(frozen=True)

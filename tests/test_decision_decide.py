@@ -248,3 +248,20 @@ def test_reacquisition_gate_rejects_a_far_object(default_config: Config) -> None
     before = {tr.id for tr in res[38][1].tracks}
     later = {tr.id for _, o in res[75:] for tr in o.tracks}
     assert later and not later & before
+
+
+def test_only_tracks_that_moved_are_reacquired_by_default(default_config: Config) -> None:
+    """Hidden before its 3-D state could show motion (fewer than ``moving_min_frames``
+    contacts): a new track by default, the old one with ``reacquire_moving_only`` false."""
+    hidden = frozenset(range(10, 40))
+    obj0, vel = crossing(8.0, 1.4, 5.0, -0.45)
+    ids = {}
+    for only in (True, False):
+        cfg = default_config.with_overrides(
+            {"tracking": {"reacquire_s": 2.0, "reacquire_moving_only": only}})
+        res = run(cfg, scene(cfg, obj0, vel, 8.0, 60, hidden=hidden))
+        before = {tr.id for tr in res[8][1].tracks}
+        assert len(before) == 1
+        ids[only] = ({tr.id for _, o in res[45:] for tr in o.tracks}, before)
+    assert ids[True][0] and not ids[True][0] & ids[True][1]
+    assert ids[False][0] == ids[False][1]

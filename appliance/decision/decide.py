@@ -65,7 +65,8 @@ class TrackCues:
 @dataclass(frozen=True)
 class LostTrack:
     """A confirmed track the image tracker lost while its 3-D state showed independent motion
-    (an occlusion, e.g. by a parked car): its public id and cues, the 3-D state coasting at
+    (or any, ``reacquire_moving_only`` false; an occlusion, e.g. by a parked car): its public id
+    and cues, the 3-D state coasting at
     constant velocity over ground until a new track's first ground contact continues it or
     ``reacquire_s`` has passed since its last contact."""
 
@@ -233,7 +234,8 @@ def _coast_lost(state: DecisionState, tracker: TrackerState, t: float, dt: float
                     for tr in state.tracker.tracks
                     if tr.id is not None and tr.uid not in alive and tr.uid in state.cues
                     and state.cues[tr.uid].ground is not None
-                    and t - state.cues[tr.uid].moved_t <= window)
+                    and (t - state.cues[tr.uid].moved_t <= window
+                         or not cfg.tracking.reacquire_moving_only))
     # no fading memory while coasting: it would inflate the covariance and widen the gate
     ground_cfg = replace(cfg.ground, memory_s=0.0)
     out: list[LostTrack] = []

@@ -215,6 +215,9 @@ class GroundConfig:
     gate_sigmas: float = _p(0.0, 100.0, lo_open=True)
     memory_s: float = _p(0.0, 1000.0)
     bearing_rate_std_rad_s: float = _p(0.0, 10.0)
+    bearing_window_s: float = _p(0.0, 10.0)
+    bearing_min_width_fraction: float = _p(0.0, 1.0)
+    bearing_min_frames: int = _p(3, 1000)
 
 
 @dataclass(frozen=True)
@@ -233,6 +236,7 @@ class WarningConfig:
     moving_min_frames: int = _p(1, 1000)
     min_probability: float = _p(0.0, 1.0)
     velocity_significance_sigmas: float = _p(0.0, 100.0)
+    velocity_conditioning: bool = _p()
 
 
 @dataclass(frozen=True)

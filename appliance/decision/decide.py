@@ -25,8 +25,9 @@ from numpy.typing import NDArray
 from appliance.config import Config
 from appliance.decision.clustering import Cluster, find_clusters
 from appliance.decision.ground_state import (
-    CameraPose, GroundContact, GroundTrack, bearing, bearing_rate_update, camera_pose, ground_absorb, ground_contact,
-    ground_predict, ground_update, innovation_sigmas, update_body_pitch, velocity_prior,
+    CameraPose, GroundContact, GroundTrack, bearing, bearing_rate_update, camera_pose, fit_bearing_rate,
+    ground_absorb, ground_contact, ground_predict, ground_update, innovation_sigmas, update_body_pitch,
+    velocity_prior,
 )
 from appliance.decision.probability_map import empty_map, spatio_temporal_filter
 from appliance.decision.scale_ttc import (
@@ -55,6 +56,8 @@ class TrackCues:
     ground_fresh: bool = False
     scale: ScaleState | None = None
     bearings: tuple[tuple[float, float], ...] = ()
+    # (t s, bearing rad, width px) of the cluster centre, frames with a cluster, last bearing_window_s
+    cluster_bearings: tuple[tuple[float, float, float], ...] = ()
     depth: float | None = None  # m, camera to object along the vehicle x axis
     depth_t: float = float("-inf")  # s, when the depth last came from the ground state
     moved: bool = False  # moving over ground (from the 3-D state; kept while it is missing)
@@ -164,6 +167,12 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
     c = track.cluster
     hist = (cues.bearings if cues else ()) + ((t, bearing(camera, track.position, pose)),)
     hist = hist[-BEARING_HISTORY:]
+    window = cfg.ground.bearing_window_s
+    chist = cues.cluster_bearings if cues else ()
+    if c is not None and window > 0.0:
+        u0, v0, u1, v1 = c.bbox
+        chist = chist + ((t, bearing(camera, (0.5 * (u0 + u1), 0.5 * (v0 + v1)), pose), u1 - u0),)
+    chist = tuple(h for h in chist if t - h[0] <= window)
     if c is not None and track.confirmed:
         if not _touches_border(c, camera, cfg.ground.border_margin_px,
                                cfg.clustering.member_weight, 0.5 * cfg.flow.window_px):
@@ -180,12 +189,16 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
                     # the occluded object is back: its coasted state takes the contact
                     g = ground_update(found.cues.ground, contact, t)
                     hist = (found.cues.bearings + hist)[-BEARING_HISTORY:]
+                    chist = tuple(h for h in found.cues.cluster_bearings + chist
+                                  if t - h[0] <= window)
                     moved_hold = g.updates + cfg.warning.moving_min_frames \
                         if found.cues.moved else 0
                 else:
                     g = ground_absorb(g, contact, t, cfg.ground, prior)
                 fresh = g.t_update == t
-                if fresh and rate is not None and cfg.ground.bearing_rate_std_rad_s > 0.0 \
+                if fresh and window > 0.0 and g.updates > 1:
+                    g = _windowed_bearing_update(g, chist, sensors, cfg)
+                elif fresh and rate is not None and cfg.ground.bearing_rate_std_rad_s > 0.0 \
                         and g.updates > 1:
                     g = bearing_rate_update(g, rate, _finite(sensors.speed_m_s),
                                             _finite(sensors.yaw_rate_rad_s),
@@ -216,9 +229,35 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
         moved_t = found.cues.moved_t
     else:
         moved_t = cues.moved_t if cues else float("-inf")
-    return TrackCues(ground=g, ground_fresh=fresh, scale=s, bearings=hist, depth=depth,
+    return TrackCues(ground=g, ground_fresh=fresh, scale=s, bearings=hist, cluster_bearings=chist,
+                     depth=depth,
                      depth_t=depth_t, moved=moved, moved_hold=moved_hold,
                      moved_t=t if moved else moved_t), found
+
+
+def _windowed_bearing_update(g: GroundTrack, chist: tuple[tuple[float, float, float], ...],
+                             sensors: SensorSample, cfg: Config) -> GroundTrack:
+    """The 3-D state after a velocity update across the line of sight from the robust bearing
+    rate of the last ``bearing_window_s`` (cluster centres, narrow clusters left out).
+
+    At range the bearing is far more precise than the range: 1 px of the foot row is about
+    1.5 m at 40 m, and a range error that changes along the track shrinks the lateral
+    displacement of the contacts (a pedestrian crossing at 1.39 m/s came out at 0.4-0.6 m/s
+    from contacts alone), while r * rate - speed * sin(bearing) gives the crossing speed with
+    the range only in the small r * rate term. The same window is fitted every frame, so its
+    std is inflated by sqrt(frames) to count its information about once.
+    """
+    gc = cfg.ground
+    if len(chist) < gc.bearing_min_frames:
+        return g
+    arr = np.asarray(chist, dtype=np.float64)
+    fit = fit_bearing_rate(arr[:, 0], arr[:, 1], arr[:, 2], gc.bearing_min_width_fraction,
+                           gc.bearing_min_frames)
+    if fit is None:
+        return g
+    std = max(fit.std, gc.bearing_rate_std_rad_s) * math.sqrt(fit.frames)
+    return bearing_rate_update(g, fit.rate, _finite(sensors.speed_m_s),
+                               _finite(sensors.yaw_rate_rad_s), (cfg.mount.x_m, cfg.mount.y_m), std)
 
 
 def _coast_lost(state: DecisionState, tracker: TrackerState, t: float, dt: float,
@@ -305,7 +344,8 @@ def assess(track: ImageTrack, cues: TrackCues, sensors: SensorSample, cfg: Confi
     g = cues.ground
     if g is not None:
         pos = g.position
-        vel = significant_velocity(g.velocity, g.P, w.velocity_significance_sigmas)
+        vel = significant_velocity(g.velocity, g.P, w.velocity_significance_sigmas,
+                                   w.velocity_conditioning)
         distance = float(outline_gap(pos, mount, 0.0))
         depth = float(pos[0] - mount.x_m)
         rng = float(np.hypot(pos[0] - mount.x_m, pos[1] - mount.y_m))

@@ -31,6 +31,7 @@ import numpy as np
 from filterpy.common import Q_discrete_white_noise
 from filterpy.kalman import predict, update
 from numpy.typing import NDArray
+from scipy.stats import theilslopes
 
 from appliance.config import GroundConfig, MountConfig
 from appliance.messages import EgoMotion, SensorSample
@@ -233,6 +234,41 @@ def bearing_rate_update(g: GroundTrack, bearing_rate: float, speed: float, yaw_r
     H = np.concatenate([np.zeros(2), tangent]).reshape(1, 4)
     x, P = update(g.x, g.P, meas, np.array([[(r * rate_std) ** 2]]), H)
     return GroundTrack(x=x, P=P, t_update=g.t_update, updates=g.updates, rejected=g.rejected)
+
+
+@dataclass(frozen=True)
+class BearingRate:
+    """A bearing rate (rad/s, vehicle frame, CCW +) fitted over a window of frames, its std
+    (rad/s) and the number of frames it used."""
+
+    rate: float
+    std: float
+    frames: int
+
+
+def fit_bearing_rate(t: NDArray[np.floating], bearings: NDArray[np.floating],
+                     widths: NDArray[np.floating], min_width_fraction: float,
+                     min_frames: int) -> BearingRate | None:
+    """Robust bearing rate over a window: Theil-Sen (scipy) slope of the cluster-centre
+    bearings (rad) against time (s), leaving out frames whose cluster is narrower than
+    ``min_width_fraction`` of the window's median width (px): a cluster cut by an occluder or
+    thinned out keeps only part of the object and its centre jumps sideways. None with fewer
+    than ``min_frames`` frames left or no time span.
+
+    The std is the half-width of Theil-Sen's 95 % slope interval / 1.96.
+    """
+    t = np.asarray(t, dtype=np.float64)
+    b = np.unwrap(np.asarray(bearings, dtype=np.float64))
+    w = np.asarray(widths, dtype=np.float64)
+    keep = w >= min_width_fraction * float(np.median(w)) if len(w) else np.zeros(0, bool)
+    if int(np.count_nonzero(keep)) < max(min_frames, 3):
+        return None
+    tk, bk = t[keep], b[keep]
+    if float(tk[-1] - tk[0]) <= 0.0:
+        return None
+    res = theilslopes(bk, tk - tk[-1], alpha=0.95)
+    std = max(float(res.high_slope - res.low_slope) / (2.0 * 1.96), 1e-4)
+    return BearingRate(rate=float(res.slope), std=std, frames=int(len(tk)))
 
 
 def ego_step(speed: float, yaw_rate: float, dt: float) -> tuple[FloatArray, FloatArray]:

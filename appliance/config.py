@@ -198,6 +198,7 @@ class TrackingConfig:
     reacquire_gate_sigmas: float = _p(0.0, lo_open=True)
     reacquire_gate_m: float = _p(0.0, lo_open=True)
     reacquire_moving_only: bool = _p()
+    coast_warn_s: float = _p(0.0, 10.0)
 
 
 @dataclass(frozen=True)

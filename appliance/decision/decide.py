@@ -25,9 +25,9 @@ from numpy.typing import NDArray
 from appliance.config import Config
 from appliance.decision.clustering import Cluster, find_clusters
 from appliance.decision.ground_state import (
-    CameraPose, GroundContact, GroundTrack, bearing, bearing_rate_update, camera_pose, fit_bearing_rate,
-    ground_absorb, ground_contact, ground_predict, ground_update, innovation_sigmas, update_body_pitch,
-    velocity_prior,
+    CameraPose, GroundContact, GroundTrack, bearing, bearing_rate_update, camera_pose,
+    crossing_velocity_update, fit_crossing_velocity, ground_absorb, ground_contact, ground_predict,
+    ground_update, innovation_sigmas, odometry_step, to_odometry, update_body_pitch, velocity_prior,
 )
 from appliance.decision.probability_map import empty_map, spatio_temporal_filter
 from appliance.decision.scale_ttc import (
@@ -56,13 +56,15 @@ class TrackCues:
     ground_fresh: bool = False
     scale: ScaleState | None = None
     bearings: tuple[tuple[float, float], ...] = ()
-    # (t s, bearing rad, width px) of the cluster centre, frames with a cluster, last bearing_window_s
-    cluster_bearings: tuple[tuple[float, float, float], ...] = ()
+    # sightings of the cluster centre (frames with a cluster, the last bearing_window_s): t s, ray
+    # direction rad and camera position x, y m in the odometry frame, cluster width px
+    sightings: tuple[tuple[float, float, float, float, float], ...] = ()
     depth: float | None = None  # m, camera to object along the vehicle x axis
     depth_t: float = float("-inf")  # s, when the depth last came from the ground state
     moved: bool = False  # moving over ground (from the 3-D state; kept while it is missing)
     moved_hold: int = 0  # a reacquired track counts as moving while its state has fewer contacts
     moved_t: float = float("-inf")  # s, when it last counted as moving
+    peak_probability: float = 0.0  # the track's highest (smoothed) eq. 20 probability so far
 
 
 @dataclass(frozen=True)
@@ -75,6 +77,7 @@ class LostTrack:
 
     id: int
     cues: TrackCues
+    track: ImageTrack | None = None  # the image track when it was lost (size, probability)
 
 
 @dataclass(frozen=True)
@@ -90,6 +93,7 @@ class DecisionState:
     pose: CameraPose | None
     t: float | None
     lost: tuple[LostTrack, ...] = ()
+    odo: tuple[float, float, float] = (0.0, 0.0, 0.0)  # vehicle x, y (m), heading (rad), odometry frame
 
 
 @dataclass(frozen=True)
@@ -151,7 +155,8 @@ def _reacquire(lost: tuple[LostTrack, ...], contact: GroundContact, cfg: Config
 
 def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
                  ego: EgoMotion, sensors: SensorSample, pose: CameraPose, cfg: Config,
-                 camera: PinholeCamera, lost: tuple[LostTrack, ...] = ()
+                 camera: PinholeCamera, lost: tuple[LostTrack, ...] = (),
+                 odo: tuple[float, float, float] = (0.0, 0.0, 0.0)
                  ) -> tuple[TrackCues, LostTrack | None]:
     """The track's cues after this frame, and the lost track it continues (if its first
     ground contact reacquired one)."""
@@ -168,10 +173,12 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
     hist = (cues.bearings if cues else ()) + ((t, bearing(camera, track.position, pose)),)
     hist = hist[-BEARING_HISTORY:]
     window = cfg.ground.bearing_window_s
-    chist = cues.cluster_bearings if cues else ()
+    chist = cues.sightings if cues else ()
     if c is not None and window > 0.0:
         u0, v0, u1, v1 = c.bbox
-        chist = chist + ((t, bearing(camera, (0.5 * (u0 + u1), 0.5 * (v0 + v1)), pose), u1 - u0),)
+        ray = odo[2] + bearing(camera, (0.5 * (u0 + u1), 0.5 * (v0 + v1)), pose)
+        cam = to_odometry(odo, np.array([pose.position[0], pose.position[1]]))
+        chist = chist + ((t, ray, float(cam[0]), float(cam[1]), u1 - u0),)
     chist = tuple(h for h in chist if t - h[0] <= window)
     if c is not None and track.confirmed:
         if not _touches_border(c, camera, cfg.ground.border_margin_px,
@@ -189,15 +196,14 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
                     # the occluded object is back: its coasted state takes the contact
                     g = ground_update(found.cues.ground, contact, t)
                     hist = (found.cues.bearings + hist)[-BEARING_HISTORY:]
-                    chist = tuple(h for h in found.cues.cluster_bearings + chist
-                                  if t - h[0] <= window)
+                    chist = tuple(h for h in found.cues.sightings + chist if t - h[0] <= window)
                     moved_hold = g.updates + cfg.warning.moving_min_frames \
                         if found.cues.moved else 0
                 else:
                     g = ground_absorb(g, contact, t, cfg.ground, prior)
                 fresh = g.t_update == t
                 if fresh and window > 0.0 and g.updates > 1:
-                    g = _windowed_bearing_update(g, chist, sensors, cfg)
+                    g = _windowed_bearing_update(g, chist, odo, cfg)
                 elif fresh and rate is not None and cfg.ground.bearing_rate_std_rad_s > 0.0 \
                         and g.updates > 1:
                     g = bearing_rate_update(g, rate, _finite(sensors.speed_m_s),
@@ -229,35 +235,38 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
         moved_t = found.cues.moved_t
     else:
         moved_t = cues.moved_t if cues else float("-inf")
-    return TrackCues(ground=g, ground_fresh=fresh, scale=s, bearings=hist, cluster_bearings=chist,
+    return TrackCues(ground=g, ground_fresh=fresh, scale=s, bearings=hist, sightings=chist,
                      depth=depth,
                      depth_t=depth_t, moved=moved, moved_hold=moved_hold,
-                     moved_t=t if moved else moved_t), found
+                     moved_t=t if moved else moved_t,
+                     peak_probability=max(cues.peak_probability if cues else 0.0,
+                                          float(track.probability))), found
 
 
-def _windowed_bearing_update(g: GroundTrack, chist: tuple[tuple[float, float, float], ...],
-                             sensors: SensorSample, cfg: Config) -> GroundTrack:
-    """The 3-D state after a velocity update across the line of sight from the robust bearing
-    rate of the last ``bearing_window_s`` (cluster centres, narrow clusters left out).
+def _windowed_bearing_update(g: GroundTrack,
+                             sightings: tuple[tuple[float, float, float, float, float], ...],
+                             odo: tuple[float, float, float], cfg: Config) -> GroundTrack:
+    """The 3-D state after a velocity update across the line of sight from the track's
+    sightings over the last ``bearing_window_s`` (:func:`fit_crossing_velocity`).
 
     At range the bearing is far more precise than the range: 1 px of the foot row is about
     1.5 m at 40 m, and a range error that changes along the track shrinks the lateral
     displacement of the contacts (a pedestrian crossing at 1.39 m/s came out at 0.4-0.6 m/s
-    from contacts alone), while r * rate - speed * sin(bearing) gives the crossing speed with
-    the range only in the small r * rate term. The same window is fitted every frame, so its
-    std is inflated by sqrt(frames) to count its information about once.
+    from contacts alone). The same window is fitted every frame, so its std is inflated by
+    sqrt(frames) to count its information about once; ``bearing_rate_std_rad_s`` times the
+    range is its floor.
     """
     gc = cfg.ground
-    if len(chist) < gc.bearing_min_frames:
+    if len(sightings) < gc.bearing_min_frames:
         return g
-    arr = np.asarray(chist, dtype=np.float64)
-    fit = fit_bearing_rate(arr[:, 0], arr[:, 1], arr[:, 2], gc.bearing_min_width_fraction,
-                           gc.bearing_min_frames)
-    if fit is None:
+    cv = fit_crossing_velocity(np.asarray(sightings, dtype=np.float64), g, odo,
+                               (cfg.mount.x_m, cfg.mount.y_m), gc.bearing_min_width_fraction,
+                               gc.bearing_min_frames)
+    if cv is None:
         return g
-    std = max(fit.std, gc.bearing_rate_std_rad_s) * math.sqrt(fit.frames)
-    return bearing_rate_update(g, fit.rate, _finite(sensors.speed_m_s),
-                               _finite(sensors.yaw_rate_rad_s), (cfg.mount.x_m, cfg.mount.y_m), std)
+    rng = float(np.hypot(g.x[0] - cfg.mount.x_m, g.x[1] - cfg.mount.y_m))
+    std = max(cv.std, gc.bearing_rate_std_rad_s * rng) * math.sqrt(cv.frames)
+    return crossing_velocity_update(g, cv, std)
 
 
 def _coast_lost(state: DecisionState, tracker: TrackerState, t: float, dt: float,
@@ -269,7 +278,7 @@ def _coast_lost(state: DecisionState, tracker: TrackerState, t: float, dt: float
         return ()
     alive = {tr.uid for tr in tracker.tracks}
     window = cfg.tracking.reacquire_s
-    dropped = tuple(LostTrack(id=int(tr.id), cues=state.cues[tr.uid])
+    dropped = tuple(LostTrack(id=int(tr.id), cues=state.cues[tr.uid], track=tr)
                     for tr in state.tracker.tracks
                     if tr.id is not None and tr.uid not in alive and tr.uid in state.cues
                     and state.cues[tr.uid].ground is not None
@@ -285,6 +294,41 @@ def _coast_lost(state: DecisionState, tracker: TrackerState, t: float, dt: float
         if t - g.t_update <= cfg.tracking.reacquire_s:
             out.append(replace(lt, cues=replace(lt.cues, ground=g)))
     return tuple(out)
+
+
+def assess_coasted(lt: LostTrack, t: float, sensors: SensorSample, pose: CameraPose, cfg: Config,
+                   camera: PinholeCamera) -> TrackThreat | None:
+    """The threat of a lost (hidden) track from its coasted 3-D state, for ``coast_warn_s``
+    after its last ground contact; None after that or when it cannot be placed in the image.
+
+    Its box is the last image box, scaled by the change of depth and centred above the
+    coasted ground position projected into the image; the scale cue is not used (nothing
+    of the object is measured). What this cannot know is exactly what the occlusion hides:
+    whether the object keeps its velocity; a pedestrian who stops behind the occluder is
+    still predicted to walk on.
+    """
+    g, tr = lt.cues.ground, lt.track
+    if g is None or tr is None or t - g.t_update > cfg.tracking.coast_warn_s:
+        return None
+    depth_now = float(g.x[0] - cfg.mount.x_m)
+    depth_then = lt.cues.depth
+    if depth_now <= 0.5 or depth_then is None or depth_then <= 0.5:
+        return None
+    R = pose.rotation()
+    foot = R.T @ (np.array([g.x[0], g.x[1], 0.0]) - np.asarray(pose.position))
+    if foot[2] <= 0.5:
+        return None
+    uf, vf = (float(c) for c in camera.project(foot[None])[0])
+    k = depth_then / depth_now
+    w, h = tr.size[0] * k, tr.size[1] * k
+    x = tr.x.copy()
+    x[0, 0], x[1, 0] = uf, vf - 0.5 * h
+    x[:, 1:] = 0.0
+    # the probability it had while seen: an occluder thins its region out before it is lost
+    coasted = replace(tr, x=x, size=(w, h), cluster=None,
+                      probability=max(tr.probability, lt.cues.peak_probability))
+    cues = replace(lt.cues, ground_fresh=False, scale=None)
+    return assess(coasted, cues, sensors, cfg, camera)
 
 
 def moves_over_ground(g: GroundTrack, cfg: Config) -> bool:
@@ -344,8 +388,8 @@ def assess(track: ImageTrack, cues: TrackCues, sensors: SensorSample, cfg: Confi
     g = cues.ground
     if g is not None:
         pos = g.position
-        vel = significant_velocity(g.velocity, g.P, w.velocity_significance_sigmas,
-                                   w.velocity_conditioning)
+        los = pos - np.array([mount.x_m, mount.y_m]) if w.velocity_conditioning else None
+        vel = significant_velocity(g.velocity, g.P, w.velocity_significance_sigmas, los)
         distance = float(outline_gap(pos, mount, 0.0))
         depth = float(pos[0] - mount.x_m)
         rng = float(np.hypot(pos[0] - mount.x_m, pos[1] - mount.y_m))
@@ -405,6 +449,8 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
     if state.pose is not None:
         body_pitch = update_body_pitch(body_pitch, ego, state.pose, dt, cfg.ground)
     pose = camera_pose(cfg.mount, body_pitch, sensors)
+    odo = odometry_step(state.odo, _finite(sensors.speed_m_s), _finite(sensors.yaw_rate_rad_s), dt) \
+        if state.t is not None else state.odo
 
     prob = spatio_temporal_filter(state.prob, particles, ego.rotation, camera, cfg.probability_map)
     clusters = find_clusters(prob, cfg.probability_map.scale, particles, cfg.clustering,
@@ -417,7 +463,7 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
     tracks = list(tracker.tracks)
     for i, tr in enumerate(tracks):
         cues[tr.uid], found = _update_cues(state.cues.get(tr.uid), tr, t, dt, ego, sensors, pose,
-                                           cfg, camera, lost)
+                                           cfg, camera, lost, odo)
         if found is not None:
             # the reacquired track continues the lost one under its id
             lost = tuple(lt for lt in lost if lt is not found)
@@ -425,11 +471,17 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
         if tr.confirmed:
             threats.append(assess(tr, cues[tr.uid], sensors, cfg, camera))
     tracker = replace(tracker, tracks=tuple(tracks))
+    if cfg.tracking.coast_warn_s > 0.0:
+        for lt in lost:
+            th = assess_coasted(lt, t, sensors, pose, cfg, camera)
+            if th is not None:
+                threats.append(th)
     threats.sort(key=lambda th: th.report.id)
     warning, events, warned = warning_step(state.warning, tuple(threats), t, frame_index,
                                            cfg.warning, frame_dt=dt)
     new_state = DecisionState(prob=prob, tracker=tracker, cues=cues, warning=warning,
-                              body_pitch=body_pitch, pose=pose, t=t, model=model, lost=lost)
+                              body_pitch=body_pitch, pose=pose, t=t, model=model, lost=lost,
+                              odo=odo)
     out = DecisionOutput(
         prob_map=ProbabilityMap(p=prob, scale=cfg.probability_map.scale),
         clusters=clusters,

@@ -388,8 +388,8 @@ def assess(track: ImageTrack, cues: TrackCues, sensors: SensorSample, cfg: Confi
     g = cues.ground
     if g is not None:
         pos = g.position
-        los = pos - np.array([mount.x_m, mount.y_m]) if w.velocity_conditioning else None
-        vel = significant_velocity(g.velocity, g.P, w.velocity_significance_sigmas, los)
+        vel = significant_velocity(g.velocity, g.P, w.velocity_significance_sigmas,
+                                   w.velocity_conditioning)
         distance = float(outline_gap(pos, mount, 0.0))
         depth = float(pos[0] - mount.x_m)
         rng = float(np.hypot(pos[0] - mount.x_m, pos[1] - mount.y_m))

@@ -146,8 +146,7 @@ def object_radius(box_width_px: float, range_m: float, fx: float) -> float:
 
 
 def significant_velocity(velocity: NDArray[np.floating], P: NDArray[np.floating],
-                         sigmas: float, line_of_sight: NDArray[np.floating] | None = None
-                         ) -> FloatArray:
+                         sigmas: float, condition: bool = False) -> FloatArray:
     """Velocity over ground (2,) m/s with each component (vehicle x, y) whose magnitude is
     below ``sigmas`` times its std (``P`` (4, 4) of ``[x, y, vx, vy]``) set to 0.
 
@@ -158,39 +157,25 @@ def significant_velocity(velocity: NDArray[np.floating], P: NDArray[np.floating]
     meets it (it seems to walk towards the car); a component that is not distinguishable
     from 0 is predicted as 0, the static world's value. ``sigmas`` 0: unchanged.
 
-    ``line_of_sight`` (2,), a vector from the camera to the object: the components are then
-    the one along it (range rate over ground) and the one across it (set by the bearing
-    rate), and the latter is predicted *given* the former is 0 when that is insignificant
-    (Gaussian conditioning on the velocity block of ``P``), not at its marginal mean. The
-    x and y components are correlated through the line of sight: a noise value of the
-    range rate (a range bias that changes with range gives a pedestrian 2 m/s) pulls the
-    lateral one the other way; given no range rate the crossing speed is what the bearings
-    say. The range rate is never predicted given the crossing speed.
+    ``condition``: when vx is insignificant, vy is predicted *given* vx = 0 (Gaussian
+    conditioning on the velocity block of ``P``) and tested with its conditional std,
+    instead of at its marginal mean. For an object ahead the two are correlated through the
+    line of sight: the bearings fix ``sin(b) vx + cos(b) vy``, so a noise value of vx (a
+    range bias that changes with range gave a pedestrian +2.5 m/s) pulls vy the other way;
+    given vx = 0 the crossing speed is what the bearings say. vx is never predicted given vy
+    (a crossing object's vx would then take the noise).
     """
     v = np.asarray(velocity, dtype=np.float64).copy()
     if sigmas <= 0.0:
         return v
     Pv = np.asarray(P, dtype=np.float64)[2:4, 2:4]
-    if line_of_sight is None:
-        std = np.sqrt(np.maximum(np.diag(Pv), 0.0))
-        v[np.abs(v) < sigmas * std] = 0.0
-        return v
-    los = np.asarray(line_of_sight, dtype=np.float64)
-    n = float(np.hypot(los[0], los[1]))
-    if n < 1e-9:
-        return significant_velocity(v, P, sigmas)
-    B = np.array([[los[0], los[1]], [-los[1], los[0]]]) / n  # rows: along, across
-    w = B @ v
-    Pw = B @ Pv @ B.T
-    if abs(w[0]) < sigmas * math.sqrt(max(Pw[0, 0], 0.0)) and Pw[0, 0] > 0.0:
-        w[1] -= Pw[1, 0] / Pw[0, 0] * w[0]  # E[across | along = 0]
-        var_across = max(Pw[1, 1] - Pw[1, 0] ** 2 / Pw[0, 0], 0.0)
-        w[0] = 0.0
-    else:
-        var_across = max(Pw[1, 1], 0.0)
-    if abs(w[1]) < sigmas * math.sqrt(var_across):
-        w[1] = 0.0
-    return B.T @ w
+    std = np.sqrt(np.maximum(np.diag(Pv), 0.0))
+    small = np.abs(v) < sigmas * std
+    if condition and small[0] and Pv[0, 0] > 0.0:
+        v[1] -= Pv[1, 0] / Pv[0, 0] * v[0]  # E[vy | vx = 0]
+        small[1] = abs(v[1]) < sigmas * math.sqrt(max(Pv[1, 1] - Pv[1, 0] ** 2 / Pv[0, 0], 0.0))
+    v[small] = 0.0
+    return v
     Pv = np.asarray(P, dtype=np.float64)[2:4, 2:4]
     std = np.sqrt(np.maximum(np.diag(Pv), 0.0))
     if not condition:

@@ -15,7 +15,9 @@ def test_bearing_window_and_conditioning_give_a_far_crossing_pedestrian_its_ttc(
     crossing speed is insignificant and no contact is predicted (TTC null); with the
     windowed bearing rate and the velocity given vx = 0 the TTC is there and right."""
     obj0, vel = crossing(8.0, 1.4, 5.0, -0.45)
-    off = run(default_config, scene(default_config, obj0, vel, 8.0, 40))
+    old = default_config.with_overrides({"ground": {"bearing_window_s": 0.0},
+                                         "warning": {"velocity_conditioning": False}})
+    off = run(old, scene(old, obj0, vel, 8.0, 40))
     cfg = default_config.with_overrides(VELOCITY)
     on = run(cfg, scene(cfg, obj0, vel, 8.0, 40))
     assert all(tr.ttc_s is None for _, o in off[30:39] for tr in o.tracks)

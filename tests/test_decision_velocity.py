@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 
 from appliance.config import Config
-from appliance.decision.decide import _windowed_bearing_update
-from appliance.decision.ground_state import (
-    GroundTrack, fit_crossing_velocity, odometry_step, to_odometry,
+from appliance.decision.crossing_velocity import (
+    fit_crossing_velocity, odometry_step, to_odometry, windowed_crossing_update,
 )
+from appliance.decision.ground_state import GroundTrack
 from appliance.decision.threat import significant_velocity
 
 SPEED = 9.72  # m/s, ego
@@ -132,7 +132,7 @@ def test_windowed_update_and_conditioning_recover_the_crossing_speed(
     P[2, 3] = P[3, 2] = -0.5 * 3.4 * 0.59
     g = state(pos - np.array([1.5, 0.0]), (2.5, 0.42), odo, P)
     hist = tuple(tuple(float(x) for x in row) for row in a)
-    g2 = _windowed_bearing_update(g, hist, odo, cfg)
+    g2 = windowed_crossing_update(g, hist, odo, cfg)
     np.testing.assert_allclose(g2.position, g.position, atol=1e-9)
     los = g2.position - np.asarray(CAM_XY)
     tangent = np.array([-los[1], los[0]]) / np.hypot(*los)
@@ -144,7 +144,7 @@ def test_windowed_update_and_conditioning_recover_the_crossing_speed(
     assert given[0] == 0.0
     assert given[1] == pytest.approx(1.39, abs=0.1)
     # too short a history: the state is unchanged
-    assert _windowed_bearing_update(g, hist[:5], odo, cfg) is g
+    assert windowed_crossing_update(g, hist[:5], odo, cfg) is g
 
 
 def test_conditioning_on_an_insignificant_range_rate() -> None:

@@ -25,9 +25,11 @@ from numpy.typing import NDArray
 from appliance.config import Config
 from appliance.decision.clustering import Cluster, find_clusters
 from appliance.decision.ground_state import (
-    CameraPose, GroundContact, GroundTrack, bearing, bearing_rate_update, camera_pose,
-    crossing_velocity_update, fit_crossing_velocity, ground_absorb, ground_contact, ground_predict,
-    ground_update, innovation_sigmas, odometry_step, to_odometry, update_body_pitch, velocity_prior,
+    CameraPose, GroundContact, GroundTrack, bearing, bearing_rate_update, camera_pose, ground_absorb,
+    ground_contact, ground_predict, ground_update, innovation_sigmas, update_body_pitch, velocity_prior,
+)
+from appliance.decision.crossing_velocity import (
+    Sighting, odometry_step, to_odometry, windowed_crossing_update,
 )
 from appliance.decision.probability_map import empty_map, spatio_temporal_filter
 from appliance.decision.scale_ttc import (
@@ -58,7 +60,7 @@ class TrackCues:
     bearings: tuple[tuple[float, float], ...] = ()
     # sightings of the cluster centre (frames with a cluster, the last bearing_window_s): t s, ray
     # direction rad and camera position x, y m in the odometry frame, cluster width px
-    sightings: tuple[tuple[float, float, float, float, float], ...] = ()
+    sightings: tuple[Sighting, ...] = ()
     depth: float | None = None  # m, camera to object along the vehicle x axis
     depth_t: float = float("-inf")  # s, when the depth last came from the ground state
     moved: bool = False  # moving over ground (from the 3-D state; kept while it is missing)
@@ -203,7 +205,7 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
                     g = ground_absorb(g, contact, t, cfg.ground, prior)
                 fresh = g.t_update == t
                 if fresh and window > 0.0 and g.updates > 1:
-                    g = _windowed_bearing_update(g, chist, odo, cfg)
+                    g = windowed_crossing_update(g, chist, odo, cfg)
                 elif fresh and rate is not None and cfg.ground.bearing_rate_std_rad_s > 0.0 \
                         and g.updates > 1:
                     g = bearing_rate_update(g, rate, _finite(sensors.speed_m_s),
@@ -241,32 +243,6 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
                      moved_t=t if moved else moved_t,
                      peak_probability=max(cues.peak_probability if cues else 0.0,
                                           float(track.probability))), found
-
-
-def _windowed_bearing_update(g: GroundTrack,
-                             sightings: tuple[tuple[float, float, float, float, float], ...],
-                             odo: tuple[float, float, float], cfg: Config) -> GroundTrack:
-    """The 3-D state after a velocity update across the line of sight from the track's
-    sightings over the last ``bearing_window_s`` (:func:`fit_crossing_velocity`).
-
-    At range the bearing is far more precise than the range: 1 px of the foot row is about
-    1.5 m at 40 m, and a range error that changes along the track shrinks the lateral
-    displacement of the contacts (a pedestrian crossing at 1.39 m/s came out at 0.4-0.6 m/s
-    from contacts alone). The same window is fitted every frame, so its std is inflated by
-    sqrt(frames) to count its information about once; ``bearing_rate_std_rad_s`` times the
-    range is its floor.
-    """
-    gc = cfg.ground
-    if len(sightings) < gc.bearing_min_frames:
-        return g
-    cv = fit_crossing_velocity(np.asarray(sightings, dtype=np.float64), g, odo,
-                               (cfg.mount.x_m, cfg.mount.y_m), gc.bearing_min_width_fraction,
-                               gc.bearing_min_frames)
-    if cv is None:
-        return g
-    rng = float(np.hypot(g.x[0] - cfg.mount.x_m, g.x[1] - cfg.mount.y_m))
-    std = max(cv.std, gc.bearing_rate_std_rad_s * rng) * math.sqrt(cv.frames)
-    return crossing_velocity_update(g, cv, std)
 
 
 def _coast_lost(state: DecisionState, tracker: TrackerState, t: float, dt: float,

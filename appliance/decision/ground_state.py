@@ -31,7 +31,6 @@ import numpy as np
 from filterpy.common import Q_discrete_white_noise
 from filterpy.kalman import predict, update
 from numpy.typing import NDArray
-from scipy.stats import theilslopes
 
 from appliance.config import GroundConfig, MountConfig
 from appliance.messages import EgoMotion, SensorSample
@@ -233,91 +232,6 @@ def bearing_rate_update(g: GroundTrack, bearing_rate: float, speed: float, yaw_r
     meas = np.array([r * bearing_rate - float(static_rel @ tangent)])
     H = np.concatenate([np.zeros(2), tangent]).reshape(1, 4)
     x, P = update(g.x, g.P, meas, np.array([[(r * rate_std) ** 2]]), H)
-    return GroundTrack(x=x, P=P, t_update=g.t_update, updates=g.updates, rejected=g.rejected)
-
-
-def odometry_step(odo: tuple[float, float, float], speed: float, yaw_rate: float, dt: float
-                  ) -> tuple[float, float, float]:
-    """The vehicle pose (x m, y m, heading rad) in a fixed odometry frame after ``dt`` s along
-    the arc of ``speed`` and ``yaw_rate`` (the same arc as :func:`ego_step`)."""
-    _, d = ego_step(speed, yaw_rate, dt)
-    x, y, psi = odo
-    c, s = math.cos(psi), math.sin(psi)
-    return (x + c * d[0] - s * d[1], y + s * d[0] + c * d[1], psi + yaw_rate * dt)
-
-
-def to_odometry(odo: tuple[float, float, float], xy: NDArray[np.floating]) -> FloatArray:
-    """Vehicle-frame points (..., 2) m -> odometry frame."""
-    x, y, psi = odo
-    c, s = math.cos(psi), math.sin(psi)
-    q = np.asarray(xy, dtype=np.float64)
-    return np.stack([x + c * q[..., 0] - s * q[..., 1], y + s * q[..., 0] + c * q[..., 1]], -1)
-
-
-@dataclass(frozen=True)
-class CrossingVelocity:
-    """The object's velocity over ground across its current line of sight, from its bearings
-    over a window: ``value`` m/s along ``tangent`` (2,) (vehicle frame, unit), ``std`` m/s."""
-
-    value: float
-    std: float
-    tangent: FloatArray
-    frames: int
-
-
-def fit_crossing_velocity(sightings: NDArray[np.floating], g: GroundTrack,
-                          odo: tuple[float, float, float], camera_xy: tuple[float, float],
-                          min_width_fraction: float, min_frames: int
-                          ) -> CrossingVelocity | None:
-    """The velocity across the line of sight from the track's sightings over a window.
-
-    ``sightings`` (N, 5): t (s), ray direction (rad) and camera position (x, y m) in the
-    odometry frame, cluster width (px). Each ray is cut at the range the object had
-    then according to the state ``g`` (its position moved back at its velocity), which gives
-    its position at each frame; a robust straight line through them (Theil-Sen per axis) is
-    its velocity over ground. Across the line of sight this is set by the bearings (a range
-    error only scales the small relative part), unlike a straight line through the bearings
-    themselves, whose slope lags when the rate changes within the window (a pedestrian
-    passing 20 m ahead: the rate doubles within 1 s). Frames with a cluster narrower than
-    ``min_width_fraction`` of the median width (cut by an occluder) are left out.
-    """
-    a = np.asarray(sightings, dtype=np.float64)
-    if len(a) == 0:
-        return None
-    keep = a[:, 4] >= min_width_fraction * float(np.median(a[:, 4]))
-    a = a[keep]
-    if len(a) < max(min_frames, 3) or float(a[-1, 0] - a[0, 0]) <= 0.0:
-        return None
-    t_now = float(a[-1, 0])
-    psi = odo[2]
-    c, s = math.cos(psi), math.sin(psi)
-    V = np.array([c * g.x[2] - s * g.x[3], s * g.x[2] + c * g.x[3]])
-    P_now = to_odometry(odo, g.x[:2])
-    cam = a[:, 2:4]
-    P_then = P_now[None, :] - V[None, :] * (t_now - a[:, 0:1])
-    r = np.hypot(*(P_then - cam).T)
-    Q = cam + r[:, None] * np.column_stack([np.cos(a[:, 1]), np.sin(a[:, 1])])
-    tt = a[:, 0] - t_now
-    fx = theilslopes(Q[:, 0], tt, alpha=0.95)
-    fy = theilslopes(Q[:, 1], tt, alpha=0.95)
-    V_fit = np.array([fx.slope, fy.slope])
-    sd = np.array([fx.high_slope - fx.low_slope, fy.high_slope - fy.low_slope]) / (2.0 * 1.96)
-    # tangent of the current line of sight, odometry and vehicle frames
-    cam_now = to_odometry(odo, np.asarray(camera_xy, dtype=np.float64))
-    d = P_now - cam_now
-    rn = float(np.hypot(d[0], d[1]))
-    if rn < 1e-3:
-        return None
-    tan_o = np.array([-d[1], d[0]]) / rn
-    tan_v = np.array([c * tan_o[0] + s * tan_o[1], -s * tan_o[0] + c * tan_o[1]])
-    std = max(float(np.hypot(tan_o[0] * sd[0], tan_o[1] * sd[1])), 1e-3)
-    return CrossingVelocity(value=float(tan_o @ V_fit), std=std, tangent=tan_v, frames=len(a))
-
-
-def crossing_velocity_update(g: GroundTrack, cv: CrossingVelocity, std: float) -> GroundTrack:
-    """Kalman update of the velocity along ``cv.tangent`` with ``cv.value`` +- ``std`` m/s."""
-    H = np.concatenate([np.zeros(2), cv.tangent]).reshape(1, 4)
-    x, P = update(g.x, g.P, np.array([cv.value]), np.array([[std ** 2]]), H)
     return GroundTrack(x=x, P=P, t_update=g.t_update, updates=g.updates, rejected=g.rejected)
 
 

@@ -197,6 +197,11 @@ class TrackingConfig:
     max_missed: int = _p(1, 1000)
     merge_px: float = _p(0.0)
     box_size_alpha: float = _p(0.0, 1.0, lo_open=True)
+    reacquire_s: float = _p(0.0, 10.0)
+    reacquire_gate_sigmas: float = _p(0.0, lo_open=True)
+    reacquire_gate_m: float = _p(0.0, lo_open=True)
+    reacquire_moving_only: bool = _p()
+    coast_warn_s: float = _p(0.0, 10.0)
 
 
 @dataclass(frozen=True)
@@ -213,6 +218,10 @@ class GroundConfig:
     scale_process_std: float = _p(0.0, 100.0)
     gate_sigmas: float = _p(0.0, 100.0, lo_open=True)
     memory_s: float = _p(0.0, 1000.0)
+    bearing_rate_std_rad_s: float = _p(0.0, 10.0)
+    bearing_window_s: float = _p(0.0, 10.0)
+    bearing_min_width_fraction: float = _p(0.0, 1.0)
+    bearing_min_frames: int = _p(3, 1000)
 
 
 @dataclass(frozen=True)
@@ -231,6 +240,7 @@ class WarningConfig:
     moving_min_frames: int = _p(1, 1000)
     min_probability: float = _p(0.0, 1.0)
     velocity_significance_sigmas: float = _p(0.0, 100.0)
+    velocity_conditioning: bool = _p()
 
 
 @dataclass(frozen=True)

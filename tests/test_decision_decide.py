@@ -215,3 +215,53 @@ def test_replay_is_deterministic(default_config: Config) -> None:
     b = run(cfg, scene(cfg, obj0, vel, 9.2, 40, seed=5))
     assert [o.tracks for _, o in a] == [o.tracks for _, o in b]
     assert [o.warnings for _, o in a] == [o.warnings for _, o in b]
+
+
+def test_long_occlusion_reacquires_the_lost_track(default_config: Config) -> None:
+    """Hidden for 1 s (a parked car): the image track is deleted; with ``reacquire_s`` the
+    coasted 3-D state takes the reappearing object back under its id, moving at once."""
+    hidden = frozenset(range(40, 70))
+    obj0, vel = crossing(8.0, 1.4, 5.0, -0.45)
+    off = run(default_config, scene(default_config, obj0, vel, 8.0, 90, hidden=hidden))
+    cfg = default_config.with_overrides({"tracking": {"reacquire_s": 2.0}})
+    on = run(cfg, scene(cfg, obj0, vel, 8.0, 90, hidden=hidden))
+    before = {tr.id for tr in on[38][1].tracks}
+    assert len(before) == 1
+    assert not off[60][1].tracks and not on[60][1].tracks  # the image track is gone
+    ids_on = {tr.id for _, o in on[70:] for tr in o.tracks}
+    ids_off = {tr.id for _, o in off[70:] for tr in o.tracks}
+    assert ids_on == before
+    assert ids_off and not ids_off & before
+    # the reacquired track has its TTC as soon as it is reported again
+    first = next(o for _, o in on[70:] if o.tracks)
+    assert first.tracks[0].ttc_s is not None
+
+
+def test_reacquisition_gate_rejects_a_far_object(default_config: Config) -> None:
+    """The gate in metres: an object reappearing further than ``reacquire_gate_m`` from the
+    coasted position (here by the coasting error alone) starts a new track."""
+    hidden = frozenset(range(40, 70))
+    obj0, vel = crossing(8.0, 1.4, 5.0, -0.45)
+    cfg = default_config.with_overrides({"tracking": {"reacquire_s": 2.0,
+                                                      "reacquire_gate_m": 0.5}})
+    res = run(cfg, scene(cfg, obj0, vel, 8.0, 90, hidden=hidden))
+    before = {tr.id for tr in res[38][1].tracks}
+    later = {tr.id for _, o in res[75:] for tr in o.tracks}
+    assert later and not later & before
+
+
+def test_only_tracks_that_moved_are_reacquired_by_default(default_config: Config) -> None:
+    """Hidden before its 3-D state could show motion (fewer than ``moving_min_frames``
+    contacts): a new track by default, the old one with ``reacquire_moving_only`` false."""
+    hidden = frozenset(range(10, 40))
+    obj0, vel = crossing(8.0, 1.4, 5.0, -0.45)
+    ids = {}
+    for only in (True, False):
+        cfg = default_config.with_overrides(
+            {"tracking": {"reacquire_s": 2.0, "reacquire_moving_only": only}})
+        res = run(cfg, scene(cfg, obj0, vel, 8.0, 60, hidden=hidden))
+        before = {tr.id for tr in res[8][1].tracks}
+        assert len(before) == 1
+        ids[only] = ({tr.id for _, o in res[45:] for tr in o.tracks}, before)
+    assert ids[True][0] and not ids[True][0] & ids[True][1]
+    assert ids[False][0] == ids[False][1]

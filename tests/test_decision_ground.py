@@ -298,3 +298,23 @@ def test_insignificant_velocity_components_are_predicted_as_zero(default_config:
     # a significant component is kept, and 0 sigmas changes nothing
     np.testing.assert_allclose(significant_velocity(np.array([-5.0, 1.1]), P, 2.0), [-5.0, 1.1])
     np.testing.assert_allclose(significant_velocity(vel, P, 0.0), vel)
+
+
+def test_bearing_rate_update_corrects_the_velocity_across_the_line_of_sight(
+        default_config: Config) -> None:
+    """A pedestrian on a constant bearing (collision course) whose state says standing still:
+    the zero bearing rate moves its velocity across the line of sight to the true value."""
+    from appliance.decision.ground_state import GroundTrack, bearing_rate_update
+
+    speed, cam = 10.0, (1.9, 0.0)
+    z = np.array([31.9, -4.0])
+    d = z - cam
+    v_true = np.array([0.0, speed * d[1] / d[0] * -1.0])  # keeps y/x constant: rate 0
+    g = GroundTrack(x=np.concatenate([z, [0.0, 0.0]]), P=np.diag([4.0, 0.3, 9.0, 4.0]),
+                    t_update=0.0, updates=5)
+    g2 = bearing_rate_update(g, 0.0, speed, 0.0, cam, 0.005)
+    b = math.atan2(d[1], d[0])
+    tangent = np.array([-math.sin(b), math.cos(b)])
+    assert g2.velocity @ tangent == pytest.approx(v_true @ tangent, abs=0.1)
+    assert tangent @ g2.P[2:, 2:] @ tangent < tangent @ g.P[2:, 2:] @ tangent
+    np.testing.assert_allclose(g2.position, g.position, atol=1e-9)  # no cross-covariance

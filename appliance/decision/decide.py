@@ -17,7 +17,7 @@ there is no randomness, so a replay is deterministic. Per frame:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -25,8 +25,11 @@ from numpy.typing import NDArray
 from appliance.config import Config
 from appliance.decision.clustering import Cluster, find_clusters
 from appliance.decision.ground_state import (
-    CameraPose, GroundTrack, bearing, camera_pose, ground_absorb, ground_contact, ground_predict,
-    update_body_pitch, velocity_prior,
+    CameraPose, GroundContact, GroundTrack, bearing, bearing_rate_update, camera_pose, ground_absorb,
+    ground_contact, ground_predict, ground_update, innovation_sigmas, update_body_pitch, velocity_prior,
+)
+from appliance.decision.crossing_velocity import (
+    Sighting, odometry_step, to_odometry, windowed_crossing_update,
 )
 from appliance.decision.probability_map import empty_map, spatio_temporal_filter
 from appliance.decision.scale_ttc import (
@@ -55,9 +58,28 @@ class TrackCues:
     ground_fresh: bool = False
     scale: ScaleState | None = None
     bearings: tuple[tuple[float, float], ...] = ()
+    # sightings of the cluster centre (frames with a cluster, the last bearing_window_s): t s, ray
+    # direction rad and camera position x, y m in the odometry frame, cluster width px
+    sightings: tuple[Sighting, ...] = ()
     depth: float | None = None  # m, camera to object along the vehicle x axis
     depth_t: float = float("-inf")  # s, when the depth last came from the ground state
     moved: bool = False  # moving over ground (from the 3-D state; kept while it is missing)
+    moved_hold: int = 0  # a reacquired track counts as moving while its state has fewer contacts
+    moved_t: float = float("-inf")  # s, when it last counted as moving
+    peak_probability: float = 0.0  # the track's highest (smoothed) eq. 20 probability so far
+
+
+@dataclass(frozen=True)
+class LostTrack:
+    """A confirmed track the image tracker lost while its 3-D state showed independent motion
+    (or any, ``reacquire_moving_only`` false; an occlusion, e.g. by a parked car): its public id
+    and cues, the 3-D state coasting at
+    constant velocity over ground until a new track's first ground contact continues it or
+    ``reacquire_s`` has passed since its last contact."""
+
+    id: int
+    cues: TrackCues
+    track: ImageTrack | None = None  # the image track when it was lost (size, probability)
 
 
 @dataclass(frozen=True)
@@ -72,6 +94,8 @@ class DecisionState:
     body_pitch: float
     pose: CameraPose | None
     t: float | None
+    lost: tuple[LostTrack, ...] = ()
+    odo: tuple[float, float, float] = (0.0, 0.0, 0.0)  # vehicle x, y (m), heading (rad), odometry frame
 
 
 @dataclass(frozen=True)
@@ -114,10 +138,33 @@ def _touches_border(c: Cluster, camera: PinholeCamera, margin: int, member_weigh
     return u0 <= m or u1 >= camera.width - m or v1 >= camera.height - m
 
 
+def _reacquire(lost: tuple[LostTrack, ...], contact: GroundContact, cfg: Config
+               ) -> LostTrack | None:
+    """The lost track whose coasted position is nearest (Mahalanobis) to ``contact``, inside
+    ``reacquire_gate_sigmas`` and ``reacquire_gate_m``; None when none is."""
+    best: tuple[float, LostTrack] | None = None
+    for lt in lost:
+        g = lt.cues.ground
+        if g is None:
+            continue
+        m = innovation_sigmas(g, contact)
+        far = float(np.hypot(*(contact.z - g.position)))
+        if m <= cfg.tracking.reacquire_gate_sigmas and far <= cfg.tracking.reacquire_gate_m \
+                and (best is None or m < best[0]):
+            best = (m, lt)
+    return best[1] if best is not None else None
+
+
 def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
                  ego: EgoMotion, sensors: SensorSample, pose: CameraPose, cfg: Config,
-                 camera: PinholeCamera) -> TrackCues:
+                 camera: PinholeCamera, lost: tuple[LostTrack, ...] = (),
+                 odo: tuple[float, float, float] = (0.0, 0.0, 0.0)
+                 ) -> tuple[TrackCues, LostTrack | None]:
+    """The track's cues after this frame, and the lost track it continues (if its first
+    ground contact reacquired one)."""
     g = cues.ground if cues else None
+    found: LostTrack | None = None
+    moved_hold = cues.moved_hold if cues else 0
     s = cues.scale if cues else None
     if g is not None:
         g = ground_predict(g, dt, sensors, cfg.ground)
@@ -127,6 +174,14 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
     c = track.cluster
     hist = (cues.bearings if cues else ()) + ((t, bearing(camera, track.position, pose)),)
     hist = hist[-BEARING_HISTORY:]
+    window = cfg.ground.bearing_window_s
+    chist = cues.sightings if cues else ()
+    if c is not None and window > 0.0:
+        u0, v0, u1, v1 = c.bbox
+        ray = odo[2] + bearing(camera, (0.5 * (u0 + u1), 0.5 * (v0 + v1)), pose)
+        cam = to_odometry(odo, np.array([pose.position[0], pose.position[1]]))
+        chist = chist + ((t, ray, float(cam[0]), float(cam[1]), u1 - u0),)
+    chist = tuple(h for h in chist if t - h[0] <= window)
     if c is not None and track.confirmed:
         if not _touches_border(c, camera, cfg.ground.border_margin_px,
                                cfg.clustering.member_weight, 0.5 * cfg.flow.window_px):
@@ -137,8 +192,26 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
                 prior = None if rate is None else velocity_prior(
                     contact.z, rate, _finite(sensors.speed_m_s), _finite(sensors.yaw_rate_rad_s),
                     (cfg.mount.x_m, cfg.mount.y_m), cfg.ground)
-                g = ground_absorb(g, contact, t, cfg.ground, prior)
+                if g is None and lost:
+                    found = _reacquire(lost, contact, cfg)
+                if found is not None and found.cues.ground is not None:
+                    # the occluded object is back: its coasted state takes the contact
+                    g = ground_update(found.cues.ground, contact, t)
+                    hist = (found.cues.bearings + hist)[-BEARING_HISTORY:]
+                    chist = tuple(h for h in found.cues.sightings + chist if t - h[0] <= window)
+                    moved_hold = g.updates + cfg.warning.moving_min_frames \
+                        if found.cues.moved else 0
+                else:
+                    g = ground_absorb(g, contact, t, cfg.ground, prior)
                 fresh = g.t_update == t
+                if fresh and window > 0.0 and g.updates > 1:
+                    g = windowed_crossing_update(g, chist, odo, cfg)
+                elif fresh and rate is not None and cfg.ground.bearing_rate_std_rad_s > 0.0 \
+                        and g.updates > 1:
+                    g = bearing_rate_update(g, rate, _finite(sensors.speed_m_s),
+                                            _finite(sensors.yaw_rate_rad_s),
+                                            (cfg.mount.x_m, cfg.mount.y_m),
+                                            cfg.ground.bearing_rate_std_rad_s)
         moving = c.weights >= cfg.clustering.member_weight
         m = measure_expansion(c.positions[moving], c.flows[moving], c.weights[moving],
                               ego.rotation, camera)
@@ -156,9 +229,82 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
             depth *= math.exp(-s.k * dt)
         if t - depth_t > DEPTH_MEMORY_S:
             depth = None
-    moved = moves_over_ground(g, cfg) if g is not None else (cues.moved if cues else False)
-    return TrackCues(ground=g, ground_fresh=fresh, scale=s, bearings=hist,
-                     depth=depth, depth_t=depth_t, moved=moved)
+    if g is not None:
+        moved = moves_over_ground(g, cfg) or g.updates < moved_hold
+    else:
+        moved = cues.moved if cues else False
+    if found is not None:
+        moved_t = found.cues.moved_t
+    else:
+        moved_t = cues.moved_t if cues else float("-inf")
+    return TrackCues(ground=g, ground_fresh=fresh, scale=s, bearings=hist, sightings=chist,
+                     depth=depth,
+                     depth_t=depth_t, moved=moved, moved_hold=moved_hold,
+                     moved_t=t if moved else moved_t,
+                     peak_probability=max(cues.peak_probability if cues else 0.0,
+                                          float(track.probability))), found
+
+
+def _coast_lost(state: DecisionState, tracker: TrackerState, t: float, dt: float,
+                sensors: SensorSample, cfg: Config) -> tuple[LostTrack, ...]:
+    """The lost tracks after this frame: the previous ones and the confirmed tracks the image
+    tracker dropped this frame while moving over ground, their 3-D states predicted by ``dt``
+    (ego motion removed) and forgotten ``reacquire_s`` after their last ground contact."""
+    if cfg.tracking.reacquire_s <= 0.0:
+        return ()
+    alive = {tr.uid for tr in tracker.tracks}
+    window = cfg.tracking.reacquire_s
+    dropped = tuple(LostTrack(id=int(tr.id), cues=state.cues[tr.uid], track=tr)
+                    for tr in state.tracker.tracks
+                    if tr.id is not None and tr.uid not in alive and tr.uid in state.cues
+                    and state.cues[tr.uid].ground is not None
+                    and (t - state.cues[tr.uid].moved_t <= window
+                         or not cfg.tracking.reacquire_moving_only))
+    # no fading memory while coasting: it would inflate the covariance and widen the gate
+    ground_cfg = replace(cfg.ground, memory_s=0.0)
+    out: list[LostTrack] = []
+    for lt in state.lost + dropped:
+        g = lt.cues.ground
+        assert g is not None
+        g = ground_predict(g, dt, sensors, ground_cfg)
+        if t - g.t_update <= cfg.tracking.reacquire_s:
+            out.append(replace(lt, cues=replace(lt.cues, ground=g)))
+    return tuple(out)
+
+
+def assess_coasted(lt: LostTrack, t: float, sensors: SensorSample, pose: CameraPose, cfg: Config,
+                   camera: PinholeCamera) -> TrackThreat | None:
+    """The threat of a lost (hidden) track from its coasted 3-D state, for ``coast_warn_s``
+    after its last ground contact; None after that or when it cannot be placed in the image.
+
+    Its box is the last image box, scaled by the change of depth and centred above the
+    coasted ground position projected into the image; the scale cue is not used (nothing
+    of the object is measured). What this cannot know is exactly what the occlusion hides:
+    whether the object keeps its velocity; a pedestrian who stops behind the occluder is
+    still predicted to walk on.
+    """
+    g, tr = lt.cues.ground, lt.track
+    if g is None or tr is None or t - g.t_update > cfg.tracking.coast_warn_s:
+        return None
+    depth_now = float(g.x[0] - cfg.mount.x_m)
+    depth_then = lt.cues.depth
+    if depth_now <= 0.5 or depth_then is None or depth_then <= 0.5:
+        return None
+    R = pose.rotation()
+    foot = R.T @ (np.array([g.x[0], g.x[1], 0.0]) - np.asarray(pose.position))
+    if foot[2] <= 0.5:
+        return None
+    uf, vf = (float(c) for c in camera.project(foot[None])[0])
+    k = depth_then / depth_now
+    w, h = tr.size[0] * k, tr.size[1] * k
+    x = tr.x.copy()
+    x[0, 0], x[1, 0] = uf, vf - 0.5 * h
+    x[:, 1:] = 0.0
+    # the probability it had while seen: an occluder thins its region out before it is lost
+    coasted = replace(tr, x=x, size=(w, h), cluster=None,
+                      probability=max(tr.probability, lt.cues.peak_probability))
+    cues = replace(lt.cues, ground_fresh=False, scale=None)
+    return assess(coasted, cues, sensors, cfg, camera)
 
 
 def moves_over_ground(g: GroundTrack, cfg: Config) -> bool:
@@ -218,7 +364,8 @@ def assess(track: ImageTrack, cues: TrackCues, sensors: SensorSample, cfg: Confi
     g = cues.ground
     if g is not None:
         pos = g.position
-        vel = significant_velocity(g.velocity, g.P, w.velocity_significance_sigmas)
+        vel = significant_velocity(g.velocity, g.P, w.velocity_significance_sigmas,
+                                   w.velocity_conditioning)
         distance = float(outline_gap(pos, mount, 0.0))
         depth = float(pos[0] - mount.x_m)
         rng = float(np.hypot(pos[0] - mount.x_m, pos[1] - mount.y_m))
@@ -278,24 +425,39 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
     if state.pose is not None:
         body_pitch = update_body_pitch(body_pitch, ego, state.pose, dt, cfg.ground)
     pose = camera_pose(cfg.mount, body_pitch, sensors)
+    odo = odometry_step(state.odo, _finite(sensors.speed_m_s), _finite(sensors.yaw_rate_rad_s), dt) \
+        if state.t is not None else state.odo
 
     prob = spatio_temporal_filter(state.prob, particles, ego.rotation, camera, cfg.probability_map)
     clusters = find_clusters(prob, cfg.probability_map.scale, particles, cfg.clustering,
                              (camera.width, camera.height), halo_px=0.5 * cfg.flow.window_px)
     tracker = track_step(state.tracker, clusters, cfg.tracking, model)
 
+    lost = _coast_lost(state, tracker, t, dt, sensors, cfg)
     cues: dict[int, TrackCues] = {}
     threats: list[TrackThreat] = []
-    for tr in tracker.tracks:
-        cues[tr.uid] = _update_cues(state.cues.get(tr.uid), tr, t, dt, ego, sensors, pose, cfg,
-                                    camera)
+    tracks = list(tracker.tracks)
+    for i, tr in enumerate(tracks):
+        cues[tr.uid], found = _update_cues(state.cues.get(tr.uid), tr, t, dt, ego, sensors, pose,
+                                           cfg, camera, lost, odo)
+        if found is not None:
+            # the reacquired track continues the lost one under its id
+            lost = tuple(lt for lt in lost if lt is not found)
+            tracks[i] = tr = replace(tr, id=found.id)
         if tr.confirmed:
             threats.append(assess(tr, cues[tr.uid], sensors, cfg, camera))
+    tracker = replace(tracker, tracks=tuple(tracks))
+    if cfg.tracking.coast_warn_s > 0.0:
+        for lt in lost:
+            th = assess_coasted(lt, t, sensors, pose, cfg, camera)
+            if th is not None:
+                threats.append(th)
     threats.sort(key=lambda th: th.report.id)
     warning, events, warned = warning_step(state.warning, tuple(threats), t, frame_index,
                                            cfg.warning, frame_dt=dt)
     new_state = DecisionState(prob=prob, tracker=tracker, cues=cues, warning=warning,
-                              body_pitch=body_pitch, pose=pose, t=t, model=model)
+                              body_pitch=body_pitch, pose=pose, t=t, model=model, lost=lost,
+                              odo=odo)
     out = DecisionOutput(
         prob_map=ProbabilityMap(p=prob, scale=cfg.probability_map.scale),
         clusters=clusters,

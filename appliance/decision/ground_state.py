@@ -211,6 +211,30 @@ def velocity_prior(z: FloatArray, bearing_rate: float, speed: float, yaw_rate: f
     return mean, cov
 
 
+def bearing_rate_update(g: GroundTrack, bearing_rate: float, speed: float, yaw_rate: float,
+                        camera_xy: tuple[float, float], rate_std: float) -> GroundTrack:
+    """Update the velocity over ground across the line of sight with a measured bearing rate
+    (rad/s, vehicle frame, ``rate_std`` its std).
+
+    The relative velocity across the line of sight is r times the bearing rate; removing the
+    part a static point has (ego speed and yaw, as in :func:`velocity_prior`) leaves a linear
+    measurement of the object's velocity: ``tangent . v = r rate - tangent . static_rel``
+    with std ``r rate_std``. The range r and the directions come from the current state.
+    """
+    z = g.x[:2]
+    d = z - np.asarray(camera_xy, float)
+    r = float(np.hypot(d[0], d[1]))
+    if r < 1e-3 or not math.isfinite(bearing_rate):
+        return g
+    radial = d / r
+    tangent = np.array([-radial[1], radial[0]])
+    static_rel = np.array([-speed + yaw_rate * z[1], -yaw_rate * z[0]])
+    meas = np.array([r * bearing_rate - float(static_rel @ tangent)])
+    H = np.concatenate([np.zeros(2), tangent]).reshape(1, 4)
+    x, P = update(g.x, g.P, meas, np.array([[(r * rate_std) ** 2]]), H)
+    return GroundTrack(x=x, P=P, t_update=g.t_update, updates=g.updates, rejected=g.rejected)
+
+
 def ego_step(speed: float, yaw_rate: float, dt: float) -> tuple[FloatArray, FloatArray]:
     """(Rt, d): the old-to-new frame rotation Rz(-dpsi) (2, 2) and the ego displacement d
     (2,) m in the old frame, for a circular arc at ``speed`` m/s and ``yaw_rate`` rad/s."""

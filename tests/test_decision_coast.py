@@ -1,0 +1,53 @@
+"""Velocity across the line of sight end to end, and a hidden track assessed from its
+coasted 3-D state (tracking.coast_warn_s), on the constructed scenes of test_decision_decide."""
+
+from __future__ import annotations
+
+from appliance.config import Config
+from test_decision_decide import crossing, run, scene
+
+VELOCITY = {"ground": {"bearing_window_s": 1.0}, "warning": {"velocity_conditioning": True}}
+
+
+def test_bearing_window_and_conditioning_give_a_far_crossing_pedestrian_its_ttc(
+        default_config: Config) -> None:
+    """A pedestrian on a collision course 33-35 m ahead: from the ground contacts alone its
+    crossing speed is insignificant and no contact is predicted (TTC null); with the
+    windowed bearing rate and the velocity given vx = 0 the TTC is there and right."""
+    obj0, vel = crossing(8.0, 1.4, 5.0, -0.45)
+    old = default_config.with_overrides({"ground": {"bearing_window_s": 0.0},
+                                         "warning": {"velocity_conditioning": False}})
+    off = run(old, scene(old, obj0, vel, 8.0, 40))
+    cfg = default_config.with_overrides(VELOCITY)
+    on = run(cfg, scene(cfg, obj0, vel, 8.0, 40))
+    assert all(tr.ttc_s is None for _, o in off[30:39] for tr in o.tracks)
+    ttcs = [(s.t, tr.ttc_s) for s, o in on[30:39] for tr in o.tracks]
+    assert ttcs and all(ttc is not None for _, ttc in ttcs)
+    # contact with the bumper is 5.0 s in (the pedestrian's half depth ahead of it); the
+    # ground contact of the constructed cloud puts it about 0.5 s late at this range
+    assert all(abs(t + ttc - 5.0) < 0.6 for t, ttc in ttcs)
+    assert max(t + ttc for t, ttc in ttcs) - min(t + ttc for t, ttc in ttcs) < 0.15
+
+
+def test_hidden_track_keeps_its_ttc_from_the_coasted_state(default_config: Config) -> None:
+    """Hidden for 1.5 s on a collision course: with ``coast_warn_s`` the lost track is still
+    reported under its id while hidden, its TTC counting down with the clock, until
+    ``coast_warn_s`` after its last ground contact; without it nothing is reported."""
+    hidden = frozenset(range(40, 85))
+    obj0, vel = crossing(8.0, 1.4, 5.0, -0.45)
+    base = default_config.with_overrides({"tracking": {"reacquire_s": 2.0}, **VELOCITY})
+    off = run(base, scene(base, obj0, vel, 8.0, 90, hidden=hidden))
+    cfg = base.with_overrides({"tracking": {"coast_warn_s": 1.0}})
+    on = run(cfg, scene(cfg, obj0, vel, 8.0, 90, hidden=hidden))
+    before = {tr.id for tr in on[38][1].tracks}
+    assert len(before) == 1
+    assert not off[60][1].tracks  # the image tracker has lost it
+    coasted = [(s.t, o.tracks) for s, o in on[60:68]]
+    assert all(len(trs) == 1 and trs[0].id in before and trs[0].ttc_s is not None
+               for _, trs in coasted)
+    # constant velocity while hidden: t + TTC stays put (to the 0.05 s path step)
+    ends = [t + trs[0].ttc_s for t, trs in coasted]
+    assert max(ends) - min(ends) <= 0.11
+    assert abs(ends[0] - 5.0) < 0.5
+    # 1 s after its last ground contact (t = 1.3 s) it is no longer assessed
+    assert all(not o.tracks for _, o in on[72:82])

@@ -12,6 +12,9 @@ there is no randomness, so a replay is deterministic. Per frame:
    scale-change cue (scale_ttc.py);
 5. path vs ego corridor and TTC per confirmed track (threat.py);
 6. warning levels with persistence, hysteresis and hold (warnings.py).
+
+Tracks lost behind an occluder are kept as coasting 3-D states (lost_tracks.py, off by
+default); the per-track cues are a TrackCues (track_cues.py).
 """
 
 from __future__ import annotations
@@ -24,62 +27,58 @@ from numpy.typing import NDArray
 
 from appliance.config import Config
 from appliance.decision.clustering import Cluster, find_clusters
-from appliance.decision.ground_state import (
-    CameraPose, GroundContact, GroundTrack, bearing, bearing_rate_update, camera_pose, ground_absorb,
-    ground_contact, ground_predict, ground_update, innovation_sigmas, update_body_pitch, velocity_prior,
-)
 from appliance.decision.crossing_velocity import (
-    Sighting, odometry_step, to_odometry, windowed_crossing_update,
+    odometry_step,
+    to_odometry,
+    windowed_crossing_update,
 )
+from appliance.decision.ground_state import (
+    CameraPose,
+    GroundTrack,
+    bearing,
+    bearing_rate_update,
+    camera_pose,
+    ground_absorb,
+    ground_contact,
+    ground_predict,
+    ground_update,
+    update_body_pitch,
+    velocity_prior,
+)
+from appliance.decision.lost_tracks import LostTrack, coast_lost, coasted_track, reacquire
 from appliance.decision.probability_map import empty_map, spatio_temporal_filter
 from appliance.decision.scale_ttc import (
-    ScaleState, measure_expansion, scale_predict, scale_ttc, scale_update,
+    measure_expansion,
+    scale_predict,
+    scale_ttc,
+    scale_update,
 )
 from appliance.decision.threat import (
-    bumper_ttc, constant_bearing_course, fuse, ground_ttc_std, object_radius, outline_gap,
-    predict_path, scale_lateral_miss, significant_velocity,
+    bumper_ttc,
+    constant_bearing_course,
+    fuse,
+    ground_ttc_std,
+    object_radius,
+    outline_gap,
+    predict_path,
+    scale_lateral_miss,
+    significant_velocity,
 )
+from appliance.decision.track_cues import TrackCues
 from appliance.decision.tracking import ImageModel, ImageTrack, TrackerState, track_step
 from appliance.decision.warnings import TrackThreat, WarningState, warning_step
 from appliance.messages import (
-    EgoMotion, ParticleSet, ProbabilityMap, SensorSample, TrackReport, WarningEvent,
+    EgoMotion,
+    ParticleSet,
+    ProbabilityMap,
+    SensorSample,
+    TrackReport,
+    WarningEvent,
 )
 from appliance.vision.geometry import PinholeCamera
 
 BEARING_HISTORY = 10  # frames of bearing kept per track for its rate
 DEPTH_MEMORY_S = 3.0  # s, a depth carried on by the scale cue alone is forgotten after this
-
-
-@dataclass(frozen=True)
-class TrackCues:
-    """Per-track state beyond the image filters: 3-D state, scale cue, bearing history."""
-
-    ground: GroundTrack | None = None
-    ground_fresh: bool = False
-    scale: ScaleState | None = None
-    bearings: tuple[tuple[float, float], ...] = ()
-    # sightings of the cluster centre (frames with a cluster, the last bearing_window_s): t s, ray
-    # direction rad and camera position x, y m in the odometry frame, cluster width px
-    sightings: tuple[Sighting, ...] = ()
-    depth: float | None = None  # m, camera to object along the vehicle x axis
-    depth_t: float = float("-inf")  # s, when the depth last came from the ground state
-    moved: bool = False  # moving over ground (from the 3-D state; kept while it is missing)
-    moved_hold: int = 0  # a reacquired track counts as moving while its state has fewer contacts
-    moved_t: float = float("-inf")  # s, when it last counted as moving
-    peak_probability: float = 0.0  # the track's highest (smoothed) eq. 20 probability so far
-
-
-@dataclass(frozen=True)
-class LostTrack:
-    """A confirmed track the image tracker lost while its 3-D state showed independent motion
-    (or any, ``reacquire_moving_only`` false; an occlusion, e.g. by a parked car): its public id
-    and cues, the 3-D state coasting at
-    constant velocity over ground until a new track's first ground contact continues it or
-    ``reacquire_s`` has passed since its last contact."""
-
-    id: int
-    cues: TrackCues
-    track: ImageTrack | None = None  # the image track when it was lost (size, probability)
 
 
 @dataclass(frozen=True)
@@ -138,23 +137,6 @@ def _touches_border(c: Cluster, camera: PinholeCamera, margin: int, member_weigh
     return u0 <= m or u1 >= camera.width - m or v1 >= camera.height - m
 
 
-def _reacquire(lost: tuple[LostTrack, ...], contact: GroundContact, cfg: Config
-               ) -> LostTrack | None:
-    """The lost track whose coasted position is nearest (Mahalanobis) to ``contact``, inside
-    ``reacquire_gate_sigmas`` and ``reacquire_gate_m``; None when none is."""
-    best: tuple[float, LostTrack] | None = None
-    for lt in lost:
-        g = lt.cues.ground
-        if g is None:
-            continue
-        m = innovation_sigmas(g, contact)
-        far = float(np.hypot(*(contact.z - g.position)))
-        if m <= cfg.tracking.reacquire_gate_sigmas and far <= cfg.tracking.reacquire_gate_m \
-                and (best is None or m < best[0]):
-            best = (m, lt)
-    return best[1] if best is not None else None
-
-
 def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
                  ego: EgoMotion, sensors: SensorSample, pose: CameraPose, cfg: Config,
                  camera: PinholeCamera, lost: tuple[LostTrack, ...] = (),
@@ -193,7 +175,7 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
                     contact.z, rate, _finite(sensors.speed_m_s), _finite(sensors.yaw_rate_rad_s),
                     (cfg.mount.x_m, cfg.mount.y_m), cfg.ground)
                 if g is None and lost:
-                    found = _reacquire(lost, contact, cfg)
+                    found = reacquire(lost, contact, cfg)
                 if found is not None and found.cues.ground is not None:
                     # the occluded object is back: its coasted state takes the contact
                     g = ground_update(found.cues.ground, contact, t)
@@ -243,68 +225,6 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
                      moved_t=t if moved else moved_t,
                      peak_probability=max(cues.peak_probability if cues else 0.0,
                                           float(track.probability))), found
-
-
-def _coast_lost(state: DecisionState, tracker: TrackerState, t: float, dt: float,
-                sensors: SensorSample, cfg: Config) -> tuple[LostTrack, ...]:
-    """The lost tracks after this frame: the previous ones and the confirmed tracks the image
-    tracker dropped this frame while moving over ground, their 3-D states predicted by ``dt``
-    (ego motion removed) and forgotten ``reacquire_s`` after their last ground contact."""
-    if cfg.tracking.reacquire_s <= 0.0:
-        return ()
-    alive = {tr.uid for tr in tracker.tracks}
-    window = cfg.tracking.reacquire_s
-    dropped = tuple(LostTrack(id=int(tr.id), cues=state.cues[tr.uid], track=tr)
-                    for tr in state.tracker.tracks
-                    if tr.id is not None and tr.uid not in alive and tr.uid in state.cues
-                    and state.cues[tr.uid].ground is not None
-                    and (t - state.cues[tr.uid].moved_t <= window
-                         or not cfg.tracking.reacquire_moving_only))
-    # no fading memory while coasting: it would inflate the covariance and widen the gate
-    ground_cfg = replace(cfg.ground, memory_s=0.0)
-    out: list[LostTrack] = []
-    for lt in state.lost + dropped:
-        g = lt.cues.ground
-        assert g is not None
-        g = ground_predict(g, dt, sensors, ground_cfg)
-        if t - g.t_update <= cfg.tracking.reacquire_s:
-            out.append(replace(lt, cues=replace(lt.cues, ground=g)))
-    return tuple(out)
-
-
-def assess_coasted(lt: LostTrack, t: float, sensors: SensorSample, pose: CameraPose, cfg: Config,
-                   camera: PinholeCamera) -> TrackThreat | None:
-    """The threat of a lost (hidden) track from its coasted 3-D state, for ``coast_warn_s``
-    after its last ground contact; None after that or when it cannot be placed in the image.
-
-    Its box is the last image box, scaled by the change of depth and centred above the
-    coasted ground position projected into the image; the scale cue is not used (nothing
-    of the object is measured). What this cannot know is exactly what the occlusion hides:
-    whether the object keeps its velocity; a pedestrian who stops behind the occluder is
-    still predicted to walk on.
-    """
-    g, tr = lt.cues.ground, lt.track
-    if g is None or tr is None or t - g.t_update > cfg.tracking.coast_warn_s:
-        return None
-    depth_now = float(g.x[0] - cfg.mount.x_m)
-    depth_then = lt.cues.depth
-    if depth_now <= 0.5 or depth_then is None or depth_then <= 0.5:
-        return None
-    R = pose.rotation()
-    foot = R.T @ (np.array([g.x[0], g.x[1], 0.0]) - np.asarray(pose.position))
-    if foot[2] <= 0.5:
-        return None
-    uf, vf = (float(c) for c in camera.project(foot[None])[0])
-    k = depth_then / depth_now
-    w, h = tr.size[0] * k, tr.size[1] * k
-    x = tr.x.copy()
-    x[0, 0], x[1, 0] = uf, vf - 0.5 * h
-    x[:, 1:] = 0.0
-    # the probability it had while seen: an occluder thins its region out before it is lost
-    coasted = replace(tr, x=x, size=(w, h), cluster=None,
-                      probability=max(tr.probability, lt.cues.peak_probability))
-    cues = replace(lt.cues, ground_fresh=False, scale=None)
-    return assess(coasted, cues, sensors, cfg, camera)
 
 
 def moves_over_ground(g: GroundTrack, cfg: Config) -> bool:
@@ -433,7 +353,7 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
                              (camera.width, camera.height), halo_px=0.5 * cfg.flow.window_px)
     tracker = track_step(state.tracker, clusters, cfg.tracking, model)
 
-    lost = _coast_lost(state, tracker, t, dt, sensors, cfg)
+    lost = coast_lost(state.tracker, state.cues, state.lost, tracker, t, dt, sensors, cfg)
     cues: dict[int, TrackCues] = {}
     threats: list[TrackThreat] = []
     tracks = list(tracker.tracks)
@@ -449,9 +369,9 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
     tracker = replace(tracker, tracks=tuple(tracks))
     if cfg.tracking.coast_warn_s > 0.0:
         for lt in lost:
-            th = assess_coasted(lt, t, sensors, pose, cfg, camera)
-            if th is not None:
-                threats.append(th)
+            coasted = coasted_track(lt, t, pose, cfg, camera)
+            if coasted is not None:
+                threats.append(assess(*coasted, sensors, cfg, camera))
     threats.sort(key=lambda th: th.report.id)
     warning, events, warned = warning_step(state.warning, tuple(threats), t, frame_index,
                                            cfg.warning, frame_dt=dt)

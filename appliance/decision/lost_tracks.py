@@ -1,0 +1,119 @@
+"""Tracks hidden by an occlusion (e.g. a parked car, the paper's fig. 7), kept as 3-D states.
+
+A confirmed track the image tracker drops while it moves over ground becomes a
+:class:`LostTrack`: its 3-D state coasts at constant velocity over ground (ego motion
+removed) for ``tracking.reacquire_s``; a new track whose first ground contact falls in its
+gate continues it under its id (:func:`reacquire`). With ``tracking.coast_warn_s`` it is
+also assessed from the coasted state (:func:`coasted_track`). Both off by default.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from appliance.config import Config
+from appliance.decision.ground_state import (
+    CameraPose,
+    GroundContact,
+    ground_predict,
+    innovation_sigmas,
+)
+from appliance.decision.track_cues import TrackCues
+from appliance.decision.tracking import ImageTrack, TrackerState
+from appliance.messages import SensorSample
+from appliance.vision.geometry import PinholeCamera
+
+
+@dataclass(frozen=True)
+class LostTrack:
+    """A confirmed track the image tracker lost while its 3-D state showed independent motion
+    (or any, ``reacquire_moving_only`` false; an occlusion, e.g. by a parked car): its public id
+    and cues, the 3-D state coasting at
+    constant velocity over ground until a new track's first ground contact continues it or
+    ``reacquire_s`` has passed since its last contact."""
+
+    id: int
+    cues: TrackCues
+    track: ImageTrack | None = None  # the image track when it was lost (size, probability)
+
+
+def reacquire(lost: tuple[LostTrack, ...], contact: GroundContact, cfg: Config
+               ) -> LostTrack | None:
+    """The lost track whose coasted position is nearest (Mahalanobis) to ``contact``, inside
+    ``reacquire_gate_sigmas`` and ``reacquire_gate_m``; None when none is."""
+    best: tuple[float, LostTrack] | None = None
+    for lt in lost:
+        g = lt.cues.ground
+        if g is None:
+            continue
+        m = innovation_sigmas(g, contact)
+        far = float(np.hypot(*(contact.z - g.position)))
+        if m <= cfg.tracking.reacquire_gate_sigmas and far <= cfg.tracking.reacquire_gate_m \
+                and (best is None or m < best[0]):
+            best = (m, lt)
+    return best[1] if best is not None else None
+
+
+def coast_lost(previous: TrackerState, previous_cues: dict[int, TrackCues],
+               previous_lost: tuple[LostTrack, ...], tracker: TrackerState, t: float, dt: float,
+               sensors: SensorSample, cfg: Config) -> tuple[LostTrack, ...]:
+    """The lost tracks after this frame: the previous ones and the confirmed tracks the image
+    tracker dropped this frame while moving over ground, their 3-D states predicted by ``dt``
+    (ego motion removed) and forgotten ``reacquire_s`` after their last ground contact."""
+    if cfg.tracking.reacquire_s <= 0.0:
+        return ()
+    alive = {tr.uid for tr in tracker.tracks}
+    window = cfg.tracking.reacquire_s
+    dropped = tuple(LostTrack(id=int(tr.id), cues=previous_cues[tr.uid], track=tr)
+                    for tr in previous.tracks
+                    if tr.id is not None and tr.uid not in alive and tr.uid in previous_cues
+                    and previous_cues[tr.uid].ground is not None
+                    and (t - previous_cues[tr.uid].moved_t <= window
+                         or not cfg.tracking.reacquire_moving_only))
+    # no fading memory while coasting: it would inflate the covariance and widen the gate
+    ground_cfg = replace(cfg.ground, memory_s=0.0)
+    out: list[LostTrack] = []
+    for lt in previous_lost + dropped:
+        g = lt.cues.ground
+        assert g is not None
+        g = ground_predict(g, dt, sensors, ground_cfg)
+        if t - g.t_update <= cfg.tracking.reacquire_s:
+            out.append(replace(lt, cues=replace(lt.cues, ground=g)))
+    return tuple(out)
+
+
+def coasted_track(lt: LostTrack, t: float, pose: CameraPose, cfg: Config,
+                  camera: PinholeCamera) -> tuple[ImageTrack, TrackCues] | None:
+    """A lost (hidden) track as an image track and cues from its coasted 3-D state, to be
+    assessed like a seen one, for ``coast_warn_s`` after its last ground contact; None after
+    that or when it cannot be placed in the image.
+
+    Its box is the last image box, scaled by the change of depth and centred above the
+    coasted ground position projected into the image; the scale cue is not used (nothing
+    of the object is measured). What this cannot know is exactly what the occlusion hides:
+    whether the object keeps its velocity; a pedestrian who stops behind the occluder is
+    still predicted to walk on.
+    """
+    g, tr = lt.cues.ground, lt.track
+    if g is None or tr is None or t - g.t_update > cfg.tracking.coast_warn_s:
+        return None
+    depth_now = float(g.x[0] - cfg.mount.x_m)
+    depth_then = lt.cues.depth
+    if depth_now <= 0.5 or depth_then is None or depth_then <= 0.5:
+        return None
+    R = pose.rotation()
+    foot = R.T @ (np.array([g.x[0], g.x[1], 0.0]) - np.asarray(pose.position))
+    if foot[2] <= 0.5:
+        return None
+    uf, vf = (float(c) for c in camera.project(foot[None])[0])
+    k = depth_then / depth_now
+    w, h = tr.size[0] * k, tr.size[1] * k
+    x = tr.x.copy()
+    x[0, 0], x[1, 0] = uf, vf - 0.5 * h
+    x[:, 1:] = 0.0
+    # the probability it had while seen: an occluder thins its region out before it is lost
+    coasted = replace(tr, x=x, size=(w, h), cluster=None,
+                      probability=max(tr.probability, lt.cues.peak_probability))
+    return coasted, replace(lt.cues, ground_fresh=False, scale=None)

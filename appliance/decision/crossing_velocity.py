@@ -19,12 +19,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from filterpy.kalman import update
 from numpy.typing import NDArray
 from scipy.stats import theilslopes
 
 from appliance.config import Config
-from appliance.decision.ground_state import GroundTrack, ego_step
+from appliance.decision.ground_state import GroundTrack, ego_step, velocity_update
 
 FloatArray = NDArray[np.float64]
 Sighting = tuple[float, float, float, float, float]
@@ -108,13 +107,6 @@ def fit_crossing_velocity(sightings: NDArray[np.floating], g: GroundTrack,
     return CrossingVelocity(value=float(tan_o @ V_fit), std=std, tangent=tan_v, frames=len(a))
 
 
-def crossing_velocity_update(g: GroundTrack, cv: CrossingVelocity, std: float) -> GroundTrack:
-    """Kalman update of the velocity along ``cv.tangent`` with ``cv.value`` +- ``std`` m/s."""
-    H = np.concatenate([np.zeros(2), cv.tangent]).reshape(1, 4)
-    x, P = update(g.x, g.P, np.array([cv.value]), np.array([[std ** 2]]), H)
-    return GroundTrack(x=x, P=P, t_update=g.t_update, updates=g.updates, rejected=g.rejected)
-
-
 def windowed_crossing_update(g: GroundTrack, sightings: tuple[Sighting, ...],
                              odo: tuple[float, float, float], cfg: Config) -> GroundTrack:
     """The 3-D state after a velocity update across the line of sight from the track's
@@ -137,4 +129,4 @@ def windowed_crossing_update(g: GroundTrack, sightings: tuple[Sighting, ...],
         return g
     rng = float(np.hypot(g.x[0] - cfg.mount.x_m, g.x[1] - cfg.mount.y_m))
     std = max(cv.std, gc.bearing_rate_std_rad_s * rng) * math.sqrt(cv.frames)
-    return crossing_velocity_update(g, cv, std)
+    return velocity_update(g, cv.tangent, cv.value, std)

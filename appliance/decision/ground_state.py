@@ -184,6 +184,32 @@ def ground_init(contact: GroundContact, t: float, cfg: GroundConfig,
     return GroundTrack(x=np.concatenate([contact.z, v]), P=P, t_update=t, updates=1)
 
 
+@dataclass(frozen=True)
+class LineOfSight:
+    """The line of sight from the camera to ``z`` (vehicle frame): range r (m), unit
+    ``radial`` and ``tangent`` (2,), and ``crossing`` (m/s): the velocity across it that the
+    bearing rate ``rate`` says the object has over ground, ``r rate`` less the part a
+    static point there has (ego speed and yaw)."""
+
+    r: float
+    radial: FloatArray
+    tangent: FloatArray
+    crossing: float
+
+
+def line_of_sight(z: FloatArray, bearing_rate: float, speed: float, yaw_rate: float,
+                  camera_xy: tuple[float, float]) -> LineOfSight | None:
+    """See :class:`LineOfSight`; None when ``z`` is at the camera (r < 1 mm)."""
+    d = np.asarray(z, float) - np.asarray(camera_xy, float)
+    r = float(np.hypot(d[0], d[1]))
+    if r < 1e-3:
+        return None
+    radial = d / r
+    tangent = np.array([-radial[1], radial[0]])
+    static_rel = np.array([-speed + yaw_rate * z[1], -yaw_rate * z[0]])
+    return LineOfSight(r, radial, tangent, r * bearing_rate - float(static_rel @ tangent))
+
+
 def velocity_prior(z: FloatArray, bearing_rate: float, speed: float, yaw_rate: float,
                    camera_xy: tuple[float, float], cfg: GroundConfig,
                    bearing_rate_std: float = 0.01) -> tuple[FloatArray, FloatArray]:
@@ -196,19 +222,23 @@ def velocity_prior(z: FloatArray, bearing_rate: float, speed: float, yaw_rate: f
     ground with ``initial_velocity_std_m_s``. A crossing car starts with most of its
     speed instead of 0, so its path is right from the first frames.
     """
-    d = np.asarray(z, float) - np.asarray(camera_xy, float)
-    r = float(np.hypot(d[0], d[1]))
-    if r < 1e-3:
+    los = line_of_sight(z, bearing_rate, speed, yaw_rate, camera_xy)
+    if los is None:
         return np.zeros(2), np.eye(2) * cfg.initial_velocity_std_m_s ** 2
-    radial = d / r
-    tangent = np.array([-radial[1], radial[0]])
-    static_rel = np.array([-speed + yaw_rate * z[1], -yaw_rate * z[0]])
-    v_t = r * bearing_rate - float(static_rel @ tangent)
-    mean = v_t * tangent
-    sd_t = max(r * bearing_rate_std, 0.3)
-    cov = (np.outer(tangent, tangent) * sd_t ** 2
-           + np.outer(radial, radial) * cfg.initial_velocity_std_m_s ** 2)
+    mean = los.crossing * los.tangent
+    sd_t = max(los.r * bearing_rate_std, 0.3)
+    cov = (np.outer(los.tangent, los.tangent) * sd_t ** 2
+           + np.outer(los.radial, los.radial) * cfg.initial_velocity_std_m_s ** 2)
     return mean, cov
+
+
+def velocity_update(g: GroundTrack, direction: FloatArray, value: float, std: float
+                    ) -> GroundTrack:
+    """Kalman update of the velocity component along the unit ``direction`` (2,) with a
+    measurement ``value`` +- ``std`` m/s; position, time and counts unchanged."""
+    H = np.concatenate([np.zeros(2), direction]).reshape(1, 4)
+    x, P = update(g.x, g.P, np.array([value]), np.array([[std ** 2]]), H)
+    return GroundTrack(x=x, P=P, t_update=g.t_update, updates=g.updates, rejected=g.rejected)
 
 
 def bearing_rate_update(g: GroundTrack, bearing_rate: float, speed: float, yaw_rate: float,
@@ -221,18 +251,12 @@ def bearing_rate_update(g: GroundTrack, bearing_rate: float, speed: float, yaw_r
     measurement of the object's velocity: ``tangent . v = r rate - tangent . static_rel``
     with std ``r rate_std``. The range r and the directions come from the current state.
     """
-    z = g.x[:2]
-    d = z - np.asarray(camera_xy, float)
-    r = float(np.hypot(d[0], d[1]))
-    if r < 1e-3 or not math.isfinite(bearing_rate):
+    if not math.isfinite(bearing_rate):
         return g
-    radial = d / r
-    tangent = np.array([-radial[1], radial[0]])
-    static_rel = np.array([-speed + yaw_rate * z[1], -yaw_rate * z[0]])
-    meas = np.array([r * bearing_rate - float(static_rel @ tangent)])
-    H = np.concatenate([np.zeros(2), tangent]).reshape(1, 4)
-    x, P = update(g.x, g.P, meas, np.array([[(r * rate_std) ** 2]]), H)
-    return GroundTrack(x=x, P=P, t_update=g.t_update, updates=g.updates, rejected=g.rejected)
+    los = line_of_sight(g.x[:2], bearing_rate, speed, yaw_rate, camera_xy)
+    if los is None:
+        return g
+    return velocity_update(g, los.tangent, los.crossing, los.r * rate_std)
 
 
 def ego_step(speed: float, yaw_rate: float, dt: float) -> tuple[FloatArray, FloatArray]:

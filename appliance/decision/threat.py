@@ -176,19 +176,3 @@ def significant_velocity(velocity: NDArray[np.floating], P: NDArray[np.floating]
         small[1] = abs(v[1]) < sigmas * math.sqrt(max(Pv[1, 1] - Pv[1, 0] ** 2 / Pv[0, 0], 0.0))
     v[small] = 0.0
     return v
-    Pv = np.asarray(P, dtype=np.float64)[2:4, 2:4]
-    std = np.sqrt(np.maximum(np.diag(Pv), 0.0))
-    if not condition:
-        v[np.abs(v) < sigmas * std] = 0.0
-        return v
-    # the least significant component first; the other is tested with its conditional std
-    i = int(np.argmin(np.abs(v) / np.maximum(std, 1e-12)))
-    j = 1 - i
-    if abs(v[i]) >= sigmas * std[i] or Pv[i, i] <= 0.0:
-        return v
-    v[j] -= Pv[j, i] / Pv[i, i] * v[i]  # E[v_j | v_i = 0]
-    var_j = max(Pv[j, j] - Pv[j, i] ** 2 / Pv[i, i], 0.0)
-    v[i] = 0.0
-    if abs(v[j]) < sigmas * math.sqrt(var_j):
-        v[j] = 0.0
-    return v

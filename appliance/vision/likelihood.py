@@ -89,12 +89,19 @@ def derotate(K: FloatArray, R: FloatArray, x_prev: NDArray[np.floating]) -> Floa
         return q[:, :2] / q[:, 2:3]
 
 
-def road_depth(road: RoadPlane, K: FloatArray, uv: NDArray[np.floating]) -> FloatArray:
-    """Depth Z (m, camera z) of the road point seen at ideal pixels ``uv`` (N, 2); NaN above the horizon."""
+def ray_drop(road: RoadPlane, K: FloatArray, uv: NDArray[np.floating]) -> FloatArray:
+    """``n . ray`` (N,) for the rays (z = 1) of ideal pixels ``uv`` (N, 2): negative below
+    the horizon (the ray meets the road at depth ``-h / drop``); a point at depth Z on the
+    ray is ``h + Z drop`` above the road."""
     uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
     rx = (uv[:, 0] - K[0, 2]) / K[0, 0]
     ry = (uv[:, 1] - K[1, 2]) / K[1, 1]
-    drop = rx * road.normal[0] + ry * road.normal[1] + road.normal[2]   # n . ray, ray z = 1
+    return np.asarray(rx * road.normal[0] + ry * road.normal[1] + road.normal[2])
+
+
+def road_depth(road: RoadPlane, K: FloatArray, uv: NDArray[np.floating]) -> FloatArray:
+    """Depth Z (m, camera z) of the road point seen at ideal pixels ``uv`` (N, 2); NaN above the horizon."""
+    drop = ray_drop(road, K, uv)
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(drop < -MIN_RAY_DROP, -road.height_m / drop, np.nan)
 
@@ -153,11 +160,8 @@ def road_static_flow(x_cur: FloatArray, motion: CameraMotion, road: RoadPlane | 
     Z = road_depth(road, K, x_cur)
     if foot is not None:  # above the horizon: the depth of the object's foot point below
         Zf = road_depth(road, K, foot)
-        rx = (x_cur[:, 0] - K[0, 2]) / K[0, 0]
-        ry = (x_cur[:, 1] - K[1, 2]) / K[1, 1]
-        rise = rx * road.normal[0] + ry * road.normal[1] + road.normal[2]   # n . ray, ray z = 1
-        with np.errstate(invalid="ignore"):
-            upright = road.height_m + Zf * rise <= max_height_m  # no taller than a mover
+        with np.errstate(invalid="ignore"):   # height above the road at the foot's depth
+            upright = road.height_m + Zf * ray_drop(road, K, x_cur) <= max_height_m
         Z = np.where(np.isnan(Z) & upright, Zf, Z)
     Kt = K @ t
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -144,6 +144,14 @@ def _timed(log: RunLog, key: str, fn: Callable[..., Any]) -> Callable[..., Any]:
     return wrapper
 
 
+def next_probability_map(prev: ProbabilityMap | None, particles: ParticleSet, ego: EgoMotion,
+                         camera: PinholeCamera, cfg: Config) -> ProbabilityMap:
+    """p(x) after this frame, as the pipeline feeds it back (the decision's first stage)."""
+    p = spatio_temporal_filter(None if prev is None else prev.p, particles, ego.rotation, camera,
+                               cfg.probability_map)
+    return ProbabilityMap(p=p, scale=cfg.probability_map.scale)
+
+
 def run(case: Case, mode: str, frames: int, seed: int, timing: bool) -> RunLog:
     """perceive over a recording; with ``timing`` also the stage split and the dense baselines."""
     cfg = case.cfg.with_overrides({"detection": {"likelihood": mode}})
@@ -167,9 +175,7 @@ def run(case: Case, mode: str, frames: int, seed: int, timing: bool) -> RunLog:
             t1 = time.perf_counter()
             for name in patched:
                 setattr(P, name, saved[name])
-            p = spatio_temporal_filter(None if prob_map is None else prob_map.p, particles,
-                                       ego.rotation, case.camera, cfg.probability_map)
-            prob_map = ProbabilityMap(p=p, scale=cfg.probability_map.scale)
+            prob_map = next_probability_map(prob_map, particles, ego, case.camera, cfg)
             if prev is not None:
                 log.ego.append(ego)
                 log.particles.append(particles)

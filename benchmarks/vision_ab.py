@@ -24,10 +24,9 @@ from typing import Any
 import cv2
 
 from appliance.config import Config, load_config
-from appliance.decision.probability_map import spatio_temporal_filter
 from appliance.messages import ProbabilityMap
 from appliance.vision import perception as P
-from benchmarks.vision import open_case, recordings, sensor_frames
+from benchmarks.vision import next_probability_map, open_case, recordings, sensor_frames
 
 SCENARIOS = ("car_crossing_intersection,cyclist_crossing_intersection,"
              "pedestrian_crossing_nearside,bend_static")
@@ -61,10 +60,7 @@ def side_by_side(cases: list[Any], b_of: Any, frames: int) -> dict[str, list[flo
                                                       case.camera)
                 if i > 0:    # the first frame has no flow
                     ms[k].append((time.perf_counter() - t0) * 1e3)
-                prev = pmap[k]
-                p = spatio_temporal_filter(None if prev is None else prev.p, particles,
-                                           ego.rotation, case.camera, cfgs[k].probability_map)
-                pmap[k] = ProbabilityMap(p=p, scale=cfgs[k].probability_map.scale)
+                pmap[k] = next_probability_map(pmap[k], particles, ego, case.camera, cfgs[k])
     return ms
 
 

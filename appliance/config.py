@@ -202,6 +202,8 @@ class TrackingConfig:
     reacquire_gate_m: float = _p(0.0, lo_open=True)
     reacquire_moving_only: bool = _p()
     coast_warn_s: float = _p(0.0, 10.0)
+    coast_cover_ratio: float = _p(0.0, 10.0)
+    coast_cover_frames: int = _p(1, 100)
 
 
 @dataclass(frozen=True)

@@ -70,8 +70,11 @@ def step(
     t0 = clock()
     vision, ego, particles = perceive(state.vision, frame, sensors, state.prob_map, cfg, camera)
     t1 = clock()
+    pair = None
+    if state.vision.prev_image is not None and vision.prev_image is not None:
+        pair = (state.vision.prev_image, vision.prev_image)
     decision, out = decide(
-        state.decision, frame.index, frame.t, particles, ego, sensors, cfg, camera
+        state.decision, frame.index, frame.t, particles, ego, sensors, cfg, camera, pair
     )
     t2 = clock()
     result = StepOutput(

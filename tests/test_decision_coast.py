@@ -32,16 +32,22 @@ def test_bearing_window_and_conditioning_give_a_far_crossing_pedestrian_its_ttc(
 def test_hidden_track_keeps_its_ttc_from_the_coasted_state(default_config: Config) -> None:
     """Hidden for 1.5 s on a collision course: with ``coast_warn_s`` the lost track is still
     reported under its id while hidden, its TTC counting down with the clock, until
-    ``coast_warn_s`` after its last ground contact; without it nothing is reported."""
+    ``coast_warn_s`` after its last ground contact; without it nothing is reported, nor
+    with the occlusion test on when nothing shows an occluder."""
     hidden = frozenset(range(40, 85))
     obj0, vel = crossing(8.0, 1.4, 5.0, -0.45)
     base = default_config.with_overrides({"tracking": {"reacquire_s": 2.0}, **VELOCITY})
     off = run(base, scene(base, obj0, vel, 8.0, 90, hidden=hidden))
-    cfg = base.with_overrides({"tracking": {"coast_warn_s": 1.0}})
+    # these constructed scenes have no images: the occlusion test (occlusion.py) is off here
+    cfg = base.with_overrides({"tracking": {"coast_warn_s": 1.0, "coast_cover_ratio": 0.0}})
     on = run(cfg, scene(cfg, obj0, vel, 8.0, 90, hidden=hidden))
+    gated = base.with_overrides({"tracking": {"coast_warn_s": 1.0}})
+    unseen = run(gated, scene(gated, obj0, vel, 8.0, 90, hidden=hidden))
     before = {tr.id for tr in on[38][1].tracks}
     assert len(before) == 1
     assert not off[60][1].tracks  # the image tracker has lost it
+    # with the occlusion test on and no image to show an occluder, it is not assessed
+    assert all(not o.tracks for _, o in unseen[50:82])
     coasted = [(s.t, o.tracks) for s, o in on[60:68]]
     assert all(len(trs) == 1 and trs[0].id in before and trs[0].ttc_s is not None
                for _, trs in coasted)

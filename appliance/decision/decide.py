@@ -1,6 +1,6 @@
 """The decision stage (section 4 + the 3-D state): particles in, tracks and warnings out.
 
-``decide(state, frame_index, t, particles, ego, sensors, cfg, camera)`` is a pure
+``decide(state, frame_index, t, particles, ego, sensors, cfg, camera, images)`` is a pure
 function of frozen state: time is an argument, nothing is read from a clock and
 there is no randomness, so a replay is deterministic. Per frame:
 
@@ -14,7 +14,8 @@ there is no randomness, so a replay is deterministic. Per frame:
 6. warning levels with persistence, hysteresis and hold (warnings.py).
 
 Tracks lost behind an occluder are kept as coasting 3-D states (lost_tracks.py, off by
-default); the per-track cues are a TrackCues (track_cues.py).
+default) and, with ``coast_warn_s``, assessed while the flow where they should be shows
+something nearer hiding them (occlusion.py); the per-track cues are a TrackCues (track_cues.py).
 """
 
 from __future__ import annotations
@@ -45,7 +46,14 @@ from appliance.decision.ground_state import (
     update_body_pitch,
     velocity_prior,
 )
-from appliance.decision.lost_tracks import LostTrack, coast_lost, coasted_track, reacquire
+from appliance.decision.lost_tracks import (
+    LostTrack,
+    coast_lost,
+    coasted_foot,
+    coasted_track,
+    reacquire,
+)
+from appliance.decision.occlusion import coasted_cover
 from appliance.decision.probability_map import empty_map, spatio_temporal_filter
 from appliance.decision.scale_ttc import (
     measure_expansion,
@@ -335,9 +343,12 @@ def assess(track: ImageTrack, cues: TrackCues, sensors: SensorSample, cfg: Confi
 
 
 def decide(state: DecisionState, frame_index: int, t: float, particles: ParticleSet,
-           ego: EgoMotion, sensors: SensorSample, cfg: Config, camera: PinholeCamera
+           ego: EgoMotion, sensors: SensorSample, cfg: Config, camera: PinholeCamera,
+           images: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None
            ) -> tuple[DecisionState, DecisionOutput]:
-    """One frame of the decision stage; see the module docstring."""
+    """One frame of the decision stage; see the module docstring. ``images``: the previous and
+    this frame (8-bit gray), for the occlusion test of coasted tracks (occlusion.py); None:
+    not measured (a coasted track then counts as not hidden when the test is on)."""
     fps = cfg.camera.fps
     dt = (t - state.t) if state.t is not None and t > state.t else 1.0 / fps
     model = state.model
@@ -368,10 +379,17 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
             threats.append(assess(tr, cues[tr.uid], sensors, cfg, camera))
     tracker = replace(tracker, tracks=tuple(tracks))
     if cfg.tracking.coast_warn_s > 0.0:
+        seen: list[LostTrack] = []
         for lt in lost:
             coasted = coasted_track(lt, t, pose, cfg, camera)
-            if coasted is not None:
+            if coasted is not None and cfg.tracking.coast_cover_ratio > 0.0:
+                ratio = coasted_cover(coasted[0], coasted_foot(lt, pose), images, ego, sensors, dt,
+                                      cfg.flow, camera)
+                lt = replace(lt, cover=(*lt.cover[1 - cfg.tracking.coast_cover_frames:], ratio))
+            seen.append(lt)
+            if coasted is not None and lt.covered(cfg):
                 threats.append(assess(*coasted, sensors, cfg, camera))
+        lost = tuple(seen)
     threats.sort(key=lambda th: th.report.id)
     warning, events, warned = warning_step(state.warning, tuple(threats), t, frame_index,
                                            cfg.warning, frame_dt=dt)

@@ -23,7 +23,7 @@ from appliance.decision.ground_state import (
 from appliance.decision.track_cues import TrackCues
 from appliance.decision.tracking import ImageTrack, TrackerState
 from appliance.messages import SensorSample
-from appliance.vision.geometry import PinholeCamera
+from appliance.vision.geometry import FloatArray, PinholeCamera
 
 
 @dataclass(frozen=True)
@@ -37,6 +37,16 @@ class LostTrack:
     id: int
     cues: TrackCues
     track: ImageTrack | None = None  # the image track when it was lost (size, probability)
+    cover: tuple[float, ...] = ()    # its last cover ratios (occlusion.cover_ratio; NaN: not measured)
+
+    def covered(self, cfg: Config) -> bool:
+        """Whether something nearer hides it: the median of its last ``coast_cover_frames``
+        measured cover ratios is at least ``coast_cover_ratio`` (always, with that 0)."""
+        if cfg.tracking.coast_cover_ratio <= 0.0:
+            return True
+        last = np.asarray(self.cover[-cfg.tracking.coast_cover_frames:], dtype=np.float64)
+        last = last[np.isfinite(last)]
+        return bool(last.size) and float(np.median(last)) >= cfg.tracking.coast_cover_ratio
 
 
 def reacquire(lost: tuple[LostTrack, ...], contact: GroundContact, cfg: Config
@@ -84,6 +94,15 @@ def coast_lost(previous: TrackerState, previous_cues: dict[int, TrackCues],
     return tuple(out)
 
 
+def coasted_foot(lt: LostTrack, pose: CameraPose) -> FloatArray | None:
+    """The coasted ground position (3,) in the current camera frame (m; z: depth), or None."""
+    g = lt.cues.ground
+    if g is None:
+        return None
+    R = pose.rotation()
+    return np.asarray(R.T @ (np.array([g.x[0], g.x[1], 0.0]) - np.asarray(pose.position)))
+
+
 def coasted_track(lt: LostTrack, t: float, pose: CameraPose, cfg: Config,
                   camera: PinholeCamera) -> tuple[ImageTrack, TrackCues] | None:
     """A lost (hidden) track as an image track and cues from its coasted 3-D state, to be
@@ -103,9 +122,8 @@ def coasted_track(lt: LostTrack, t: float, pose: CameraPose, cfg: Config,
     depth_then = lt.cues.depth
     if depth_now <= 0.5 or depth_then is None or depth_then <= 0.5:
         return None
-    R = pose.rotation()
-    foot = R.T @ (np.array([g.x[0], g.x[1], 0.0]) - np.asarray(pose.position))
-    if foot[2] <= 0.5:
+    foot = coasted_foot(lt, pose)
+    if foot is None or foot[2] <= 0.5:
         return None
     uf, vf = (float(c) for c in camera.project(foot[None])[0])
     k = depth_then / depth_now

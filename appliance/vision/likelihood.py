@@ -163,6 +163,13 @@ def road_static_flow(x_cur: FloatArray, motion: CameraMotion, road: RoadPlane | 
         with np.errstate(invalid="ignore"):   # height above the road at the foot's depth
             upright = road.height_m + Zf * ray_drop(road, K, x_cur) <= max_height_m
         Z = np.where(np.isnan(Z) & upright, Zf, Z)
+    return static_flow(x_cur, K, t, Z)
+
+
+def static_flow(x_cur: FloatArray, K: FloatArray, t: FloatArray, Z: FloatArray) -> FloatArray:
+    """Translational flow (N, 2) px of static points seen at ideal pixels ``x_cur`` (N, 2) at
+    depths ``Z`` (N,) m in the current frame, for the metric translation ``t`` (3,):
+    ``((K t)_xy - t_z x_cur) / (Z - t_z)``; NaN where the point was not in front of the camera."""
     Kt = K @ t
     with np.errstate(divide="ignore", invalid="ignore"):
         depth_prev = Z - t[2]

@@ -1,0 +1,140 @@
+"""The occlusion test of a coasted track (decision/occlusion.py) on rendered image pairs.
+
+A textured fronto-parallel wall at depth Z seen by a camera driving straight at it:
+between two frames the wall's image is magnified about the principal point by
+``Z_prev / Z_cur``, rendered here with OpenCV. Lucas-Kanade in a box then says
+whether the wall is nearer than an object at a given depth would be.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import cv2
+import numpy as np
+import pytest
+
+from appliance.config import Config
+from appliance.decision.lost_tracks import LostTrack
+from appliance.decision.occlusion import coasted_cover, cover_ratio, probe_box, probe_points
+from appliance.decision.track_cues import TrackCues
+from appliance.decision.tracking import ImageTrack
+from appliance.messages import EgoMotion, SensorSample
+from appliance.vision.geometry import PinholeCamera
+
+CAM = PinholeCamera(640, 480, 700.0, 700.0, 319.5, 239.5)
+STEP_M = 0.4          # camera travel between the frames (12 m/s at 30 fps)
+BOX = (420.0, 260.0, 470.0, 360.0)   # off the principal point: static flow 2-6 px
+
+
+def texture(seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    noise = rng.uniform(0, 255, (CAM.height, CAM.width)).astype(np.float32)
+    return np.clip(cv2.GaussianBlur(noise, (0, 0), 1.5) * 2.0 - 128.0, 0, 255).astype(np.uint8)
+
+
+def wall_pair(depth_cur: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Previous and current frame of a wall at ``depth_cur`` m now, ``STEP_M`` farther before."""
+    prev = texture(seed)
+    s = (depth_cur + STEP_M) / depth_cur
+    c = np.array([CAM.cx, CAM.cy])
+    A = np.array([[s, 0.0, (1 - s) * c[0]], [0.0, s, (1 - s) * c[1]]])
+    cur = cv2.warpAffine(prev, A, (CAM.width, CAM.height), flags=cv2.INTER_LINEAR,
+                         borderMode=cv2.BORDER_REFLECT)
+    return prev, cur
+
+
+T_M = np.array([0.0, 0.0, -STEP_M])   # X_cur = X_prev + t: the camera moved forward
+
+
+@pytest.mark.parametrize(("wall_m", "object_m"), [(10.0, 15.0), (10.0, 10.0), (15.0, 10.0)])
+def test_cover_ratio_is_the_depth_ratio(default_config: Config, wall_m: float,
+                                        object_m: float) -> None:
+    """What is in the box at ``wall_m`` against an object expected at ``object_m``: the
+    ratio is about ``object_m / wall_m`` (> 1: something nearer covers the object)."""
+    prev, cur = wall_pair(wall_m)
+    ratio, n = cover_ratio(prev, cur, BOX, object_m, np.eye(3), T_M, CAM, default_config.flow)
+    expected = (object_m + STEP_M) / (wall_m + STEP_M)
+    assert n >= 20
+    assert ratio == pytest.approx(expected, rel=0.08)
+
+
+def test_rotation_is_removed_before_the_ratio(default_config: Config) -> None:
+    """A yaw between the frames shifts the whole image; with that rotation given, the ratio
+    is unchanged; with it ignored, it is wrong."""
+    prev, cur = wall_pair(10.0)
+    yaw = math.radians(0.3)
+    R = np.array([[math.cos(yaw), 0.0, math.sin(yaw)], [0.0, 1.0, 0.0],
+                  [-math.sin(yaw), 0.0, math.cos(yaw)]])
+    shift = CAM.fx * math.tan(yaw)   # a point at the centre moves by f tan(yaw) to the right
+    cur = cv2.warpAffine(cur, np.array([[1.0, 0.0, shift], [0.0, 1.0, 0.0]]), (CAM.width, CAM.height),
+                         borderMode=cv2.BORDER_REFLECT)
+    right, _ = cover_ratio(prev, cur, BOX, 15.0, R, T_M, CAM, default_config.flow)
+    wrong, _ = cover_ratio(prev, cur, BOX, 15.0, np.eye(3), T_M, CAM, default_config.flow)
+    assert right == pytest.approx(15.4 / 10.4, rel=0.1)
+    assert abs(wrong - 15.4 / 10.4) > 0.3
+
+
+def test_flat_or_unmeasurable_boxes_give_no_ratio(default_config: Config) -> None:
+    """A flat image (nothing to track), a box outside the image, an unknown translation and a
+    box at the epipole (no static flow to compare with) give NaN and 0 points, no exception."""
+    flat = np.full((CAM.height, CAM.width), 90, np.uint8)
+    assert cover_ratio(flat, flat, BOX, 10.0, np.eye(3), T_M, CAM, default_config.flow)[1] == 0
+    prev, cur = wall_pair(10.0)
+    out = (700.0, 500.0, 760.0, 600.0)
+    assert cover_ratio(prev, cur, out, 10.0, np.eye(3), T_M, CAM, default_config.flow)[1] == 0
+    nan_t = np.full(3, np.nan)
+    assert cover_ratio(prev, cur, BOX, 10.0, np.eye(3), nan_t, CAM, default_config.flow)[1] == 0
+    centre = (317.0, 237.0, 322.0, 242.0)
+    ratio, n = cover_ratio(prev, cur, centre, 10.0, np.eye(3), T_M, CAM, default_config.flow)
+    assert n == 0 and math.isnan(ratio)
+
+
+def test_probe_box_grows_a_shrunken_box_to_a_body() -> None:
+    """A 3 x 6 px remnant at 20 m becomes at least 0.6 x 1.2 m (21 x 42 px at f = 700), bottom
+    kept; a box already larger stays; the grid covers its lower 60 % inside the image."""
+    u0, v0, u1, v1 = probe_box(400.0, 300.0, (3.0, 6.0), 20.0, CAM)
+    assert (u1 - u0, v1 - v0, v1) == pytest.approx((21.0, 42.0, 300.0))
+    assert probe_box(400.0, 300.0, (50.0, 80.0), 20.0, CAM) == pytest.approx((375.0, 220.0, 425.0, 300.0))
+    pts = probe_points((100.0, 100.0, 200.0, 300.0), CAM.width, CAM.height)
+    assert len(pts) == 36 and pts[:, 1].min() > 180.0 and pts[:, 1].max() < 300.0
+    assert len(probe_points((620.0, 100.0, 700.0, 300.0), CAM.width, CAM.height)) < 36
+
+
+def _lost(cover: tuple[float, ...]) -> LostTrack:
+    return LostTrack(id=1, cues=TrackCues(), cover=cover)
+
+
+def test_a_lost_track_counts_as_hidden_on_the_median_of_its_last_ratios(
+        default_config: Config) -> None:
+    cfg = default_config.with_overrides({"tracking": {"coast_cover_ratio": 1.15, "coast_cover_frames": 5}})
+    assert _lost((1.3, 1.2, 0.4, 1.25, 1.4)).covered(cfg)         # one bad frame does not decide
+    assert not _lost((0.8, 0.7, 1.6, 0.9, 0.75)).covered(cfg)     # nor does one high one
+    assert not _lost((1.3, 1.3, 1.3, 0.7, 0.8, 0.7, 0.6, 0.9)).covered(cfg)  # only the last 5 count
+    assert _lost((math.nan, 1.3, math.nan, 1.2)).covered(cfg)    # unmeasured frames are left out
+    assert not _lost((math.nan, math.nan)).covered(cfg)           # nothing measured: not hidden
+    assert not _lost(()).covered(cfg)
+    off = cfg.with_overrides({"tracking": {"coast_cover_ratio": 0.0}})
+    assert _lost(()).covered(off)                                 # the test off: every lost track
+
+
+def test_coasted_cover_needs_images_and_motion(default_config: Config) -> None:
+    """From a coasted image track and its foot point: the ratio with the image pair, NaN
+    without it or at a standstill."""
+    prev, cur = wall_pair(10.0)
+    x = np.zeros((2, 3))
+    x[0, 0], x[1, 0] = 445.0, 330.0
+    tr = ImageTrack(uid=1, id=1, x=x, P=np.zeros((2, 3, 3)), size=(4.0, 8.0), age=10, misses=0,
+                    cluster=None, probability=0.6)
+    ego = EgoMotion(rotation=np.zeros(3), translation_dir=np.array([0.0, 0.0, -1.0]),
+                    epipole_px=(CAM.cx, CAM.cy), prior_rotation=np.zeros(3),
+                    prior_translation_dir=np.array([0.0, 0.0, -1.0]), prior_epipole_px=None,
+                    inliers=100, confident=True)
+    sensors = SensorSample(t=0.0, speed_m_s=STEP_M * 30.0, yaw_rate_rad_s=0.0)
+    foot = np.array([1.0, 1.2, 15.0])
+    ratio = coasted_cover(tr, foot, (prev, cur), ego, sensors, 1.0 / 30.0, default_config.flow, CAM)
+    assert ratio == pytest.approx(15.4 / 10.4, rel=0.1)
+    assert math.isnan(coasted_cover(tr, foot, None, ego, sensors, 1 / 30, default_config.flow, CAM))
+    halt = replace(ego, standstill=True)
+    assert math.isnan(coasted_cover(tr, foot, (prev, cur), halt, sensors, 1 / 30, default_config.flow, CAM))

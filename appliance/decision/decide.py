@@ -41,6 +41,7 @@ from appliance.decision.ground_state import (
     camera_pose,
     ground_absorb,
     ground_contact,
+    ground_in_camera,
     ground_predict,
     ground_update,
     update_body_pitch,
@@ -53,6 +54,7 @@ from appliance.decision.lost_tracks import (
     coasted_track,
     reacquire,
 )
+from appliance.decision.object_extent import extended, top_row
 from appliance.decision.occlusion import coasted_cover
 from appliance.decision.probability_map import empty_map, spatio_temporal_filter
 from appliance.decision.scale_ttc import (
@@ -255,6 +257,23 @@ def moves_over_ground(g: GroundTrack, cfg: Config) -> bool:
     return m2 >= cfg.warning.moving_sigmas ** 2
 
 
+def _outline(tr: ImageTrack, cues: TrackCues, pose: CameraPose,
+             images: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None, step_m: float,
+             cfg: Config, camera: PinholeCamera) -> ImageTrack:
+    """The track as reported: its box reaching up the object (object_extent.py) when its
+    depth is known from the 3-D state and the frame pair is there; else as tracked."""
+    g = cues.ground
+    if cfg.tracking.outline_max_height_m <= 0.0 or images is None or g is None:
+        return tr
+    foot = ground_in_camera(pose, g.position)
+    if foot[2] <= 0.5:
+        return tr
+    top = top_row(images[0], images[1], tr.bbox, float(foot[2]), camera, cfg.flow,
+                  step_m / float(foot[2]), cfg.tracking.outline_max_height_m,
+                  cfg.tracking.outline_tolerance)
+    return extended(tr, top)
+
+
 def _clip_box(box: tuple[float, float, float, float], camera: PinholeCamera
               ) -> tuple[float, float, float, float]:
     """The track box inside the image, rounded to 0.1 px (a coasting track may drift out)."""
@@ -376,7 +395,9 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
             lost = tuple(lt for lt in lost if lt is not found)
             tracks[i] = tr = replace(tr, id=found.id)
         if tr.confirmed:
-            threats.append(assess(tr, cues[tr.uid], sensors, cfg, camera))
+            shown = _outline(tr, cues[tr.uid], pose, images, _finite(sensors.speed_m_s) * dt,
+                             cfg, camera)
+            threats.append(assess(shown, cues[tr.uid], sensors, cfg, camera))
     tracker = replace(tracker, tracks=tuple(tracks))
     if cfg.tracking.coast_warn_s > 0.0:
         seen: list[LostTrack] = []

@@ -65,6 +65,12 @@ def camera_pose(mount: MountConfig, body_pitch: float, sensors: SensorSample) ->
                       sensors.pan_rad, sensors.tilt_rad)
 
 
+def ground_in_camera(pose: CameraPose, position: NDArray[np.floating]) -> FloatArray:
+    """A road point ``position`` (x, y) m in the vehicle frame, in the camera frame (3,) m (z: depth)."""
+    p = np.array([float(position[0]), float(position[1]), 0.0])
+    return np.asarray(pose.rotation().T @ (p - np.asarray(pose.position)))
+
+
 def update_body_pitch(b: float, ego: EgoMotion, pose_prev: CameraPose, dt: float,
                       cfg: GroundConfig) -> float:
     """Body pitch (rad, nose down +) after this frame's refined rotation.

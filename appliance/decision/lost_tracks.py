@@ -17,6 +17,7 @@ from appliance.config import Config
 from appliance.decision.ground_state import (
     CameraPose,
     GroundContact,
+    ground_in_camera,
     ground_predict,
     innovation_sigmas,
 )
@@ -97,10 +98,7 @@ def coast_lost(previous: TrackerState, previous_cues: dict[int, TrackCues],
 def coasted_foot(lt: LostTrack, pose: CameraPose) -> FloatArray | None:
     """The coasted ground position (3,) in the current camera frame (m; z: depth), or None."""
     g = lt.cues.ground
-    if g is None:
-        return None
-    R = pose.rotation()
-    return np.asarray(R.T @ (np.array([g.x[0], g.x[1], 0.0]) - np.asarray(pose.position)))
+    return None if g is None else ground_in_camera(pose, g.position)
 
 
 def coasted_track(lt: LostTrack, t: float, pose: CameraPose, cfg: Config,

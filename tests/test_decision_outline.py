@@ -1,0 +1,96 @@
+"""The reported outline of a track (decision/object_extent.py) on rendered image pairs.
+
+A textured upright object (120 px tall) moves over a textured background that moves
+differently; the track's box is only the strip at its feet, as the particle filter
+gives it for a pedestrian. Lucas-Kanade up the columns finds where the object ends.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from appliance.config import Config
+from appliance.decision.object_extent import extended, top_row
+from appliance.decision.tracking import ImageTrack
+from appliance.vision.geometry import PinholeCamera
+
+CAM = PinholeCamera(640, 480, 700.0, 700.0, 319.5, 239.5)
+OBJ = (300, 180, 340, 300)          # u0, v0, u1, v1 of the object in the current frame
+FEET = (302.0, 290.0, 338.0, 300.0)  # the track's box: its lowest 10 px
+DEPTH_M = 10.0                      # 2 m at 10 m: 140 px, above the object's 120
+
+
+def texture(seed: int, shape: tuple[int, int]) -> np.ndarray:
+    noise = np.random.default_rng(seed).uniform(0, 255, shape).astype(np.float32)
+    return np.clip(cv2.GaussianBlur(noise, (0, 0), 1.5) * 2.0 - 128.0, 0, 255).astype(np.uint8)
+
+
+def shifted(img: np.ndarray, du: float, dv: float, scale: float = 1.0,
+            centre: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
+    cu, cv = centre
+    A = np.array([[scale, 0.0, (1 - scale) * cu + du], [0.0, scale, (1 - scale) * cv + dv]])
+    return cv2.warpAffine(img, A, (img.shape[1], img.shape[0]), flags=cv2.INTER_LINEAR,
+                          borderMode=cv2.BORDER_REFLECT)
+
+
+def pair(obj_flow: tuple[float, float], bg_flow: tuple[float, float], scale: float = 1.0,
+         flat_object: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Previous and current frame: background moved by ``bg_flow``, the object by ``obj_flow``
+    and magnified by ``scale`` about its feet (it comes nearer)."""
+    bg = texture(1, (CAM.height, CAM.width))
+    obj = np.full((CAM.height, CAM.width), 90, np.uint8) if flat_object else texture(2, (CAM.height, CAM.width))
+    u0, v0, u1, v1 = OBJ
+    feet = (0.5 * (u0 + u1), float(v1))
+    mask = np.zeros((CAM.height, CAM.width), np.uint8)
+    mask[v0:v1, u0:u1] = 255
+    # previous frame: the object's region where it was (inverse of this frame's motion)
+    inv = 1.0 / scale
+    prev_mask = shifted(mask, -obj_flow[0], -obj_flow[1], inv, feet) > 127
+    prev_obj = shifted(obj, -obj_flow[0], -obj_flow[1], inv, feet)
+    prev = np.where(prev_mask, prev_obj, bg)
+    cur = np.where(mask > 127, obj, shifted(bg, *bg_flow))
+    return prev, cur
+
+
+def test_the_outline_reaches_the_top_of_the_object(default_config: Config) -> None:
+    prev, cur = pair((1.0, 0.0), (3.0, 0.5))
+    top = top_row(prev, cur, FEET, DEPTH_M, CAM, default_config.flow)
+    assert top == pytest.approx(OBJ[1], abs=8.0)
+
+
+def test_without_the_expansion_a_nearing_object_is_cut_short(default_config: Config) -> None:
+    """Magnified 2 % per frame about its feet, the object's top moves 2.4 px more upward
+    than its feet: with that expansion given the whole object is found, without it not."""
+    prev, cur = pair((1.0, 0.0), (3.0, 0.5), scale=1.02)
+    right = top_row(prev, cur, FEET, DEPTH_M, CAM, default_config.flow, expansion=0.02)
+    wrong = top_row(prev, cur, FEET, DEPTH_M, CAM, default_config.flow, expansion=0.0)
+    assert right == pytest.approx(OBJ[1], abs=8.0)
+    assert wrong > OBJ[1] + 30.0
+
+
+def test_the_height_cap_holds_where_the_background_moves_like_the_object(
+        default_config: Config) -> None:
+    """Nothing distinguishes object and background: the outline stops at 2 m above the feet."""
+    prev, cur = pair((1.0, 0.0), (1.0, 0.0))
+    top = top_row(prev, cur, FEET, DEPTH_M, CAM, default_config.flow, max_height_m=1.0)
+    assert top == pytest.approx(FEET[3] - 1.0 * CAM.fy / DEPTH_M, abs=0.01)
+
+
+def test_nothing_to_measure_keeps_the_box(default_config: Config) -> None:
+    """A flat object (LK cannot measure its flow in the box) and degenerate inputs keep the box top."""
+    prev, cur = pair((1.0, 0.0), (3.0, 0.5), flat_object=True)
+    assert top_row(prev, cur, FEET, DEPTH_M, CAM, default_config.flow) == FEET[1]
+    assert top_row(prev, cur, FEET, -1.0, CAM, default_config.flow) == FEET[1]
+    assert top_row(prev, cur, (300.0, 300.0, 300.0, 310.0), DEPTH_M, CAM, default_config.flow) == 300.0
+
+
+def test_extended_keeps_bottom_and_width() -> None:
+    x = np.zeros((2, 3))
+    x[0, 0], x[1, 0] = 320.0, 295.0
+    tr = ImageTrack(uid=1, id=1, x=x, P=np.zeros((2, 3, 3)), size=(36.0, 10.0), age=5, misses=0,
+                    cluster=None, probability=0.7)
+    out = extended(tr, 180.0)
+    assert out.bbox == pytest.approx((302.0, 180.0, 338.0, 300.0))
+    assert extended(tr, 295.0) is tr      # below the box top: unchanged

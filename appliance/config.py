@@ -226,6 +226,8 @@ class GroundConfig:
     bearing_window_s: float = _p(0.0, 10.0)
     bearing_min_width_fraction: float = _p(0.0, 1.0)
     bearing_min_frames: int = _p(3, 1000)
+    scale_from_outline: bool = _p()
+    range_rate_from_scale: bool = _p()
 
 
 @dataclass(frozen=True)

@@ -15,10 +15,11 @@ def test_bearing_window_and_conditioning_give_a_far_crossing_pedestrian_its_ttc(
     crossing speed is insignificant and no contact is predicted (TTC null); with the
     windowed bearing rate and the velocity given vx = 0 the TTC is there and right."""
     obj0, vel = crossing(8.0, 1.4, 5.0, -0.45)
-    old = default_config.with_overrides({"ground": {"bearing_window_s": 0.0},
-                                         "warning": {"velocity_conditioning": False}})
+    base = default_config.with_overrides({"ground": {"range_rate_from_scale": False}})
+    old = base.with_overrides({"ground": {"bearing_window_s": 0.0},
+                               "warning": {"velocity_conditioning": False}})
     off = run(old, scene(old, obj0, vel, 8.0, 40))
-    cfg = default_config.with_overrides(VELOCITY)
+    cfg = base.with_overrides(VELOCITY)
     on = run(cfg, scene(cfg, obj0, vel, 8.0, 40))
     assert all(tr.ttc_s is None for _, o in off[30:39] for tr in o.tracks)
     ttcs = [(s.t, tr.ttc_s) for s, o in on[30:39] for tr in o.tracks]
@@ -27,6 +28,24 @@ def test_bearing_window_and_conditioning_give_a_far_crossing_pedestrian_its_ttc(
     # ground contact of the constructed cloud puts it about 0.5 s late at this range
     assert all(abs(t + ttc - 5.0) < 0.6 for t, ttc in ttcs)
     assert max(t + ttc for t, ttc in ttcs) - min(t + ttc for t, ttc in ttcs) < 0.15
+
+
+def test_range_rate_from_the_scale_cue_alone_gives_the_far_pedestrian_its_ttc(
+        default_config: Config) -> None:
+    """The same pedestrian with the bearing window and the conditioning off: the expansion
+    rate of its cluster (closing speed / depth) fixes the velocity along the line of sight
+    (ground.range_rate_from_scale), so the crossing speed is significant and the TTC right."""
+    obj0, vel = crossing(8.0, 1.4, 5.0, -0.45)
+    cfg = default_config.with_overrides({"ground": {"bearing_window_s": 0.0,
+                                                    "range_rate_from_scale": True},
+                                         "warning": {"velocity_conditioning": False}})
+    on = run(cfg, scene(cfg, obj0, vel, 8.0, 40))
+    ttcs = [(s.t, tr.ttc_s) for s, o in on[28:39] for tr in o.tracks]
+    assert ttcs and all(ttc is not None for _, ttc in ttcs)
+    # contact 5.0 s in; late by the constructed cloud's contact bias (as above) and by the
+    # velocity still converging: 0.8 s at t = 1 s, closing in
+    ends = [t + ttc for t, ttc in ttcs]
+    assert all(abs(e - 5.0) < 0.9 for e in ends) and ends[-1] < ends[0] - 0.2
 
 
 def test_hidden_track_keeps_its_ttc_from_the_coasted_state(default_config: Config) -> None:

@@ -9,17 +9,33 @@ import pytest
 
 from appliance.config import Config
 from appliance.decision.ground_state import (
-    CameraPose, GroundContact, GroundTrack, back_project, ground_contact, ground_init,
-    ground_predict, ground_update, update_body_pitch,
+    CameraPose,
+    GroundContact,
+    GroundTrack,
+    back_project,
+    ground_contact,
+    ground_init,
+    ground_predict,
+    ground_update,
+    range_rate_update,
+    update_body_pitch,
 )
 from appliance.decision.scale_ttc import (
-    measure_expansion, scale_predict, scale_ttc, scale_update,
+    measure_expansion,
+    scale_predict,
+    scale_ttc,
+    scale_update,
 )
 from appliance.decision.threat import bumper_ttc, fuse, predict_path, significant_velocity
 from appliance.messages import EgoMotion, SensorSample
 from appliance.vision.geometry import (
-    PinholeCamera, euler_to_matrix, matrix_to_euler, relative_motion, rotational_flow,
-    vehicle_from_camera, vehicle_from_camera_rotation,
+    PinholeCamera,
+    euler_to_matrix,
+    matrix_to_euler,
+    relative_motion,
+    rotational_flow,
+    vehicle_from_camera,
+    vehicle_from_camera_rotation,
 )
 
 CAM = PinholeCamera(640, 480, 700.0, 700.0, 319.5, 239.5)
@@ -318,3 +334,25 @@ def test_bearing_rate_update_corrects_the_velocity_across_the_line_of_sight(
     assert g2.velocity @ tangent == pytest.approx(v_true @ tangent, abs=0.1)
     assert tangent @ g2.P[2:, 2:] @ tangent < tangent @ g.P[2:, 2:] @ tangent
     np.testing.assert_allclose(g2.position, g.position, atol=1e-9)  # no cross-covariance
+
+
+@pytest.mark.parametrize(("pan", "obj_vel"), [(0.0, (0.0, 0.0)), (0.0, (-5.0, 1.0)), (0.3, (2.0, 1.5))])
+def test_range_rate_from_the_expansion_rate(pan: float, obj_vel: tuple[float, float]) -> None:
+    """An object at 20 m ahead, ego at 10 m/s: its image expands at (closing speed along the
+    camera axis) / depth. Fed that rate, the velocity along the (panned) axis becomes the true
+    one; the component across it keeps its prior; a NaN rate changes nothing."""
+    pose = CameraPose((1.9, 0.0, 1.3), 0.0, pan, 0.0)
+    pos = np.array([22.0, 2.0])
+    P = np.diag([1.0, 1.0, 25.0, 25.0])
+    g = GroundTrack(np.array([pos[0], pos[1], 0.0, 0.0]), P, 0.0, 10)
+    R = pose.rotation()
+    d = R[:2, 2] / np.hypot(*R[:2, 2])
+    z = float(R[:, 2] @ (np.array([pos[0], pos[1], 0.0]) - np.array(pose.position)))
+    closing = float((np.array([10.0, 0.0]) - np.array(obj_vel)) @ d)
+    out = range_rate_update(g, closing / z, 0.01 ** 2, pose, 10.0)
+    assert float(out.velocity @ d) == pytest.approx(float(np.array(obj_vel) @ d), abs=0.05)
+    across = np.array([-d[1], d[0]])
+    assert float(out.velocity @ across) == pytest.approx(0.0, abs=1e-9)
+    # the measurement std is 0.01 /s x the depth (~20 m): 0.2 m/s along d; the prior (5 m/s) across
+    assert out.P[2:, 2:] @ d @ d < 0.05 and out.P[2:, 2:] @ across @ across == pytest.approx(25.0)
+    assert range_rate_update(g, math.nan, 0.01, pose, 10.0) is g

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from appliance.config import Config
-from appliance.decision.object_extent import extended, top_row
+from appliance.decision.object_extent import extended, outline, top_row
+from appliance.decision.scale_ttc import measure_expansion
 from appliance.decision.tracking import ImageTrack
 from appliance.vision.geometry import PinholeCamera
 
@@ -94,3 +95,17 @@ def test_extended_keeps_bottom_and_width() -> None:
     out = extended(tr, 180.0)
     assert out.bbox == pytest.approx((302.0, 180.0, 338.0, 300.0))
     assert extended(tr, 295.0) is tr      # below the box top: unchanged
+
+
+def test_the_outline_flows_measure_the_expansion(default_config: Config) -> None:
+    """The points the outline rests on carry the object's scale change (2 %/frame here) for
+    the scale cue (ground.scale_from_outline), better than the 10 px strip at the feet."""
+    prev, cur = pair((1.0, 0.0), (3.0, 0.5), scale=1.02)
+    shape = outline(prev, cur, FEET, DEPTH_M, CAM, default_config.flow, expansion=0.02)
+    assert len(shape.positions) >= 40 and shape.positions[:, 1].min() < OBJ[1] + 10
+    m = measure_expansion(shape.positions, shape.flows, np.ones(len(shape.positions)), None, CAM)
+    assert m is not None and m.kappa == pytest.approx(0.02, abs=0.002)
+    strip = shape.positions[:, 1] > FEET[1]
+    feet = measure_expansion(shape.positions[strip], shape.flows[strip], np.ones(int(strip.sum())),
+                             None, CAM)
+    assert feet is None or abs(feet.kappa - 0.02) > 2 * abs(m.kappa - 0.02)

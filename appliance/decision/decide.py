@@ -44,6 +44,7 @@ from appliance.decision.ground_state import (
     ground_in_camera,
     ground_predict,
     ground_update,
+    range_rate_update,
     update_body_pitch,
     velocity_prior,
 )
@@ -54,7 +55,7 @@ from appliance.decision.lost_tracks import (
     coasted_track,
     reacquire,
 )
-from appliance.decision.object_extent import extended, top_row
+from appliance.decision.object_extent import Outline, extended, outline
 from appliance.decision.occlusion import coasted_cover
 from appliance.decision.probability_map import empty_map, spatio_temporal_filter
 from appliance.decision.scale_ttc import (
@@ -88,6 +89,7 @@ from appliance.messages import (
 from appliance.vision.geometry import PinholeCamera
 
 BEARING_HISTORY = 10  # frames of bearing kept per track for its rate
+OUTLINE_MIN_POINTS = 8  # outline flows the scale cue needs to prefer them to the cluster's
 DEPTH_MEMORY_S = 3.0  # s, a depth carried on by the scale cue alone is forgotten after this
 
 
@@ -150,10 +152,11 @@ def _touches_border(c: Cluster, camera: PinholeCamera, margin: int, member_weigh
 def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
                  ego: EgoMotion, sensors: SensorSample, pose: CameraPose, cfg: Config,
                  camera: PinholeCamera, lost: tuple[LostTrack, ...] = (),
-                 odo: tuple[float, float, float] = (0.0, 0.0, 0.0)
+                 odo: tuple[float, float, float] = (0.0, 0.0, 0.0), shape: Outline | None = None
                  ) -> tuple[TrackCues, LostTrack | None]:
     """The track's cues after this frame, and the lost track it continues (if its first
-    ground contact reacquired one)."""
+    ground contact reacquired one). ``shape``: the track's outline this frame, whose flows
+    the scale cue fits (``ground.scale_from_outline``) when there are enough."""
     g = cues.ground if cues else None
     found: LostTrack | None = None
     moved_hold = cues.moved_hold if cues else 0
@@ -204,11 +207,21 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
                                             _finite(sensors.yaw_rate_rad_s),
                                             (cfg.mount.x_m, cfg.mount.y_m),
                                             cfg.ground.bearing_rate_std_rad_s)
-        moving = c.weights >= cfg.clustering.member_weight
-        m = measure_expansion(c.positions[moving], c.flows[moving], c.weights[moving],
-                              ego.rotation, camera)
+        if cfg.ground.scale_from_outline and shape is not None \
+                and len(shape.positions) >= OUTLINE_MIN_POINTS:
+            m = measure_expansion(shape.positions, shape.flows, np.ones(len(shape.positions)),
+                                  ego.rotation, camera)
+        else:
+            moving = c.weights >= cfg.clustering.member_weight
+            m = measure_expansion(c.positions[moving], c.flows[moving], c.weights[moving],
+                                  ego.rotation, camera)
         if m is not None:
             s = scale_update(s, m, dt)
+            if cfg.ground.range_rate_from_scale and fresh and g is not None and dt > 0.0 \
+                    and m.kappa > -0.9:
+                g = range_rate_update(g, math.log1p(m.kappa) / dt,
+                                      m.var / ((1.0 + m.kappa) * dt) ** 2, pose,
+                                      _finite(sensors.speed_m_s))
     if g is not None and t - g.t_update > cfg.ground.coast_s:
         g = None
     # depth: from the 3-D state while there is one, then carried on by the expansion rate
@@ -257,21 +270,20 @@ def moves_over_ground(g: GroundTrack, cfg: Config) -> bool:
     return m2 >= cfg.warning.moving_sigmas ** 2
 
 
-def _outline(tr: ImageTrack, cues: TrackCues, pose: CameraPose,
+def _outline(tr: ImageTrack, cues: TrackCues | None, pose: CameraPose,
              images: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None, step_m: float,
-             cfg: Config, camera: PinholeCamera) -> ImageTrack:
-    """The track as reported: its box reaching up the object (object_extent.py) when its
-    depth is known from the 3-D state and the frame pair is there; else as tracked."""
-    g = cues.ground
+             cfg: Config, camera: PinholeCamera) -> Outline | None:
+    """The track's outline (object_extent.py) when its depth is known from the 3-D state
+    (last frame's) and the frame pair is there; else None (reported as tracked)."""
+    g = cues.ground if cues is not None else None
     if cfg.tracking.outline_max_height_m <= 0.0 or images is None or g is None:
-        return tr
+        return None
     foot = ground_in_camera(pose, g.position)
     if foot[2] <= 0.5:
-        return tr
-    top = top_row(images[0], images[1], tr.bbox, float(foot[2]), camera, cfg.flow,
-                  step_m / float(foot[2]), cfg.tracking.outline_max_height_m,
-                  cfg.tracking.outline_tolerance)
-    return extended(tr, top)
+        return None
+    return outline(images[0], images[1], tr.bbox, float(foot[2]), camera, cfg.flow,
+                   step_m / float(foot[2]), cfg.tracking.outline_max_height_m,
+                   cfg.tracking.outline_tolerance)
 
 
 def _clip_box(box: tuple[float, float, float, float], camera: PinholeCamera
@@ -388,15 +400,20 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
     threats: list[TrackThreat] = []
     tracks = list(tracker.tracks)
     for i, tr in enumerate(tracks):
-        cues[tr.uid], found = _update_cues(state.cues.get(tr.uid), tr, t, dt, ego, sensors, pose,
-                                           cfg, camera, lost, odo)
+        before = state.cues.get(tr.uid)
+        shape = _outline(tr, before, pose, images, _finite(sensors.speed_m_s) * dt, cfg, camera) \
+            if tr.confirmed else None
+        cues[tr.uid], found = _update_cues(before, tr, t, dt, ego, sensors, pose,
+                                           cfg, camera, lost, odo, shape)
         if found is not None:
             # the reacquired track continues the lost one under its id
             lost = tuple(lt for lt in lost if lt is not found)
             tracks[i] = tr = replace(tr, id=found.id)
         if tr.confirmed:
-            shown = _outline(tr, cues[tr.uid], pose, images, _finite(sensors.speed_m_s) * dt,
-                             cfg, camera)
+            if shape is None:   # a 3-D state started this frame: outline it with that
+                shape = _outline(tr, cues[tr.uid], pose, images, _finite(sensors.speed_m_s) * dt,
+                                 cfg, camera)
+            shown = tr if shape is None else extended(tr, shape.top)
             threats.append(assess(shown, cues[tr.uid], sensors, cfg, camera))
     tracker = replace(tracker, tracks=tuple(tracks))
     if cfg.tracking.coast_warn_s > 0.0:

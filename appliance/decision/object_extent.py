@@ -19,7 +19,7 @@ pipeline step.
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -27,49 +27,66 @@ from numpy.typing import NDArray
 from appliance.config import FlowConfig
 from appliance.decision.tracking import ImageTrack
 from appliance.vision.flow import track
-from appliance.vision.geometry import PinholeCamera
+from appliance.vision.geometry import FloatArray, PinholeCamera
 
 COLUMNS = 4          # probe columns across the box
 MIN_TOLERANCE_PX = 0.5
 MAX_UNMEASURED_M = 0.6   # more than this of rows without a flow in a row ends the outline
 
 
-def top_row(prev: NDArray[np.uint8], cur: NDArray[np.uint8], box: tuple[float, float, float, float],
+@dataclass(frozen=True)
+class Outline:
+    """What :func:`outline` found: the object's top row (px) and the flows it rests on,
+    positions (M, 2) px in the current frame and flows (M, 2) px (current minus previous),
+    of the points inside the box and in the rows that agreed (for the scale cue)."""
+
+    top: float
+    positions: FloatArray
+    flows: FloatArray
+
+
+def _none(v0: float) -> Outline:
+    return Outline(top=v0, positions=np.zeros((0, 2)), flows=np.zeros((0, 2)))
+
+
+def outline(prev: NDArray[np.uint8], cur: NDArray[np.uint8], box: tuple[float, float, float, float],
             depth_m: float, camera: PinholeCamera, flow_cfg: FlowConfig, expansion: float = 0.0,
-            max_height_m: float = 2.0, tolerance: float = 0.3, max_gap: int = 2) -> float:
-    """Top row (px) of the object whose lower part is ``box`` (u0, v0, u1, v1) in ``cur``, at
-    camera depth ``depth_m``: ``v0`` or higher (smaller); ``v0`` when the object's own flow
-    cannot be measured in the box. ``expansion``: the object's image scale change per frame
-    (about ``speed dt / depth`` when the camera drives at it): its flow at x is that at the
-    box plus ``expansion (x - x_box)``, so the top of a pedestrian 2 m tall at 14 m moves
-    ~1.7 px/frame more upward than its feet at 30 km/h."""
+            max_height_m: float = 2.0, tolerance: float = 0.3, max_gap: int = 2) -> Outline:
+    """The object whose lower part is ``box`` (u0, v0, u1, v1) in ``cur``, at camera depth
+    ``depth_m``: its top row, ``v0`` or higher (smaller), ``v0`` when its own flow cannot be
+    measured in the box. ``expansion``: the object's image scale change per frame (about
+    ``speed dt / depth`` when the camera drives at it): its flow at x is that at the box plus
+    ``expansion (x - x_box)``, so the top of a pedestrian 2 m tall at 14 m moves ~1.7 px/frame
+    more upward than its feet at 30 km/h."""
     u0, v0, u1, v1 = box
     if depth_m <= 0.0 or u1 <= u0 or v1 <= v0:
-        return v0
+        return _none(v0)
     step = max(2.0, 0.1 * camera.fy / depth_m)        # a row every 10 cm, at least 2 px
     v_min = max(0.0, v1 - max_height_m * camera.fy / depth_m)
     cols = np.linspace(u0, u1, COLUMNS + 2)[1:-1]
     inside_rows = np.linspace(v0, v1, 4)[1:-1]
     rows = np.arange(v0 - 0.5 * step, v_min, -step)
     if rows.size == 0:
-        return v0
+        return _none(v0)
     grid_v = np.concatenate([inside_rows, rows])
     pts = np.column_stack([np.tile(cols, len(grid_v)), np.repeat(grid_v, len(cols))])
     ok_px = (pts[:, 0] >= 0) & (pts[:, 0] <= camera.width - 1) & (pts[:, 1] >= 0) \
         & (pts[:, 1] <= camera.height - 1)
     back = track(cur, prev, np.where(ok_px[:, None], pts, 0.0), np.ones(len(pts), dtype=bool), flow_cfg)
+    grid = pts.reshape(len(grid_v), len(cols), 2)
     flow = (pts - back.end).reshape(len(grid_v), len(cols), 2)
     valid = (back.valid & ok_px).reshape(len(grid_v), len(cols))
     n_in = len(inside_rows)
     own = flow[:n_in][valid[:n_in]]
     if len(own) < 2:
-        return v0
+        return _none(v0)
     f_obj = np.median(own, axis=0)
-    x_obj = np.median(pts.reshape(len(grid_v), len(cols), 2)[:n_in][valid[:n_in]], axis=0)
-    expected = f_obj + expansion * (pts.reshape(len(grid_v), len(cols), 2) - x_obj)
+    x_obj = np.median(grid[:n_in][valid[:n_in]], axis=0)
+    expected = f_obj + expansion * (grid - x_obj)
     tol = max(MIN_TOLERANCE_PX, tolerance * float(np.hypot(*f_obj)))
     max_blind = max(1, int(MAX_UNMEASURED_M * camera.fy / depth_m / step))
-    top, gap, blind = v0, 0, 0
+    agree = valid & (np.hypot(flow[..., 0] - expected[..., 0], flow[..., 1] - expected[..., 1]) <= tol)
+    top, gap, blind, last = v0, 0, 0, n_in - 1
     for r in range(n_in, len(grid_v)):
         ok = valid[r]
         if ok.sum() < 2:                               # nothing measured: neither way, for a while
@@ -78,14 +95,23 @@ def top_row(prev: NDArray[np.uint8], cur: NDArray[np.uint8], box: tuple[float, f
                 break
             continue
         blind = 0
-        agree = np.hypot(*(flow[r][ok] - expected[r][ok]).T) <= tol
-        if agree.mean() >= 0.5:
-            top, gap = grid_v[r] - 0.5 * step, 0
+        if agree[r][ok].mean() >= 0.5:
+            top, gap, last = grid_v[r] - 0.5 * step, 0, r
         else:
             gap += 1
             if gap >= max_gap:
                 break
-    return float(max(top, v_min))
+    use = agree[: last + 1]
+    return Outline(top=float(max(top, v_min)), positions=grid[: last + 1][use],
+                   flows=flow[: last + 1][use])
+
+
+def top_row(prev: NDArray[np.uint8], cur: NDArray[np.uint8], box: tuple[float, float, float, float],
+            depth_m: float, camera: PinholeCamera, flow_cfg: FlowConfig, expansion: float = 0.0,
+            max_height_m: float = 2.0, tolerance: float = 0.3, max_gap: int = 2) -> float:
+    """The top row of :func:`outline`."""
+    return outline(prev, cur, box, depth_m, camera, flow_cfg, expansion, max_height_m, tolerance,
+                   max_gap).top
 
 
 def extended(track_: ImageTrack, top: float) -> ImageTrack:

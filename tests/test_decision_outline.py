@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from appliance.config import Config
-from appliance.decision.object_extent import extended, outline, top_row
+from appliance.decision.object_extent import extended, outline
 from appliance.decision.scale_ttc import measure_expansion
 from appliance.decision.tracking import ImageTrack
 from appliance.vision.geometry import PinholeCamera
@@ -57,7 +57,7 @@ def pair(obj_flow: tuple[float, float], bg_flow: tuple[float, float], scale: flo
 
 def test_the_outline_reaches_the_top_of_the_object(default_config: Config) -> None:
     prev, cur = pair((1.0, 0.0), (3.0, 0.5))
-    top = top_row(prev, cur, FEET, DEPTH_M, CAM, default_config.flow)
+    top = outline(prev, cur, FEET, DEPTH_M, CAM, default_config.flow).top
     assert top == pytest.approx(OBJ[1], abs=8.0)
 
 
@@ -65,8 +65,8 @@ def test_without_the_expansion_a_nearing_object_is_cut_short(default_config: Con
     """Magnified 2 % per frame about its feet, the object's top moves 2.4 px more upward
     than its feet: with that expansion given the whole object is found, without it not."""
     prev, cur = pair((1.0, 0.0), (3.0, 0.5), scale=1.02)
-    right = top_row(prev, cur, FEET, DEPTH_M, CAM, default_config.flow, expansion=0.02)
-    wrong = top_row(prev, cur, FEET, DEPTH_M, CAM, default_config.flow, expansion=0.0)
+    right = outline(prev, cur, FEET, DEPTH_M, CAM, default_config.flow, expansion=0.02).top
+    wrong = outline(prev, cur, FEET, DEPTH_M, CAM, default_config.flow, expansion=0.0).top
     assert right == pytest.approx(OBJ[1], abs=8.0)
     assert wrong > OBJ[1] + 30.0
 
@@ -75,16 +75,16 @@ def test_the_height_cap_holds_where_the_background_moves_like_the_object(
         default_config: Config) -> None:
     """Nothing distinguishes object and background: the outline stops at 2 m above the feet."""
     prev, cur = pair((1.0, 0.0), (1.0, 0.0))
-    top = top_row(prev, cur, FEET, DEPTH_M, CAM, default_config.flow, max_height_m=1.0)
+    top = outline(prev, cur, FEET, DEPTH_M, CAM, default_config.flow, max_height_m=1.0).top
     assert top == pytest.approx(FEET[3] - 1.0 * CAM.fy / DEPTH_M, abs=0.01)
 
 
 def test_nothing_to_measure_keeps_the_box(default_config: Config) -> None:
     """A flat object (LK cannot measure its flow in the box) and degenerate inputs keep the box top."""
     prev, cur = pair((1.0, 0.0), (3.0, 0.5), flat_object=True)
-    assert top_row(prev, cur, FEET, DEPTH_M, CAM, default_config.flow) == FEET[1]
-    assert top_row(prev, cur, FEET, -1.0, CAM, default_config.flow) == FEET[1]
-    assert top_row(prev, cur, (300.0, 300.0, 300.0, 310.0), DEPTH_M, CAM, default_config.flow) == 300.0
+    assert outline(prev, cur, FEET, DEPTH_M, CAM, default_config.flow).top == FEET[1]
+    assert outline(prev, cur, FEET, -1.0, CAM, default_config.flow).top == FEET[1]
+    assert outline(prev, cur, (300.0, 300.0, 300.0, 310.0), DEPTH_M, CAM, default_config.flow).top == 300.0
 
 
 def test_extended_keeps_bottom_and_width() -> None:

@@ -378,8 +378,9 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
            images: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None
            ) -> tuple[DecisionState, DecisionOutput]:
     """One frame of the decision stage; see the module docstring. ``images``: the previous and
-    this frame (8-bit gray), for the occlusion test of coasted tracks (occlusion.py); None:
-    not measured (a coasted track then counts as not hidden when the test is on)."""
+    this frame (8-bit gray), for the tracks' outlines (object_extent.py) and the occlusion
+    test of coasted tracks (occlusion.py); None: neither is measured (tracks are reported
+    with their cluster boxes, a coasted track counts as not hidden when the test is on)."""
     fps = cfg.camera.fps
     dt = (t - state.t) if state.t is not None and t > state.t else 1.0 / fps
     model = state.model

@@ -7,7 +7,7 @@ horizon it needs a foot point close below (likelihood.foot_points). The track's 
 then a strip at the feet: right for the ground contact, wrong as the object's outline a
 driver's display shows (a 60 px pedestrian reported as 8 px of shoes).
 
-:func:`top_row` measures the outline instead: Lucas-Kanade (current frame back to the
+:func:`outline` measures it instead: Lucas-Kanade (current frame back to the
 previous one, forward-backward checked) on a few columns across the box, row by row
 upward from its top; a row belongs to the object while most of its measured flows agree
 with the object's own (the median flow inside the box), within ``tolerance`` of its
@@ -104,14 +104,6 @@ def outline(prev: NDArray[np.uint8], cur: NDArray[np.uint8], box: tuple[float, f
     use = agree[: last + 1]
     return Outline(top=float(max(top, v_min)), positions=grid[: last + 1][use],
                    flows=flow[: last + 1][use])
-
-
-def top_row(prev: NDArray[np.uint8], cur: NDArray[np.uint8], box: tuple[float, float, float, float],
-            depth_m: float, camera: PinholeCamera, flow_cfg: FlowConfig, expansion: float = 0.0,
-            max_height_m: float = 2.0, tolerance: float = 0.3, max_gap: int = 2) -> float:
-    """The top row of :func:`outline`."""
-    return outline(prev, cur, box, depth_m, camera, flow_cfg, expansion, max_height_m, tolerance,
-                   max_gap).top
 
 
 def extended(track_: ImageTrack, top: float) -> ImageTrack:

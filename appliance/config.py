@@ -228,6 +228,7 @@ class GroundConfig:
     bearing_min_frames: int = _p(3, 1000)
     scale_from_outline: bool = _p()
     range_rate_from_scale: bool = _p()
+    range_rate_std_gain: float = _p(0.0, 100.0, lo_open=True)
 
 
 @dataclass(frozen=True)

@@ -356,3 +356,14 @@ def test_range_rate_from_the_expansion_rate(pan: float, obj_vel: tuple[float, fl
     # the measurement std is 0.01 /s x the depth (~20 m): 0.2 m/s along d; the prior (5 m/s) across
     assert out.P[2:, 2:] @ d @ d < 0.05 and out.P[2:, 2:] @ across @ across == pytest.approx(25.0)
     assert range_rate_update(g, math.nan, 0.01, pose, 10.0) is g
+
+
+def test_range_rate_far_from_a_confident_state_is_skipped() -> None:
+    """A state sure of standing still (velocity std 0.1 m/s): an expansion rate saying it
+    comes at the car at 5 m/s is 50 sigma off and skipped with a 3.5 sigma gate, taken without."""
+    pose = CameraPose((1.9, 0.0, 1.3), 0.0, 0.0, 0.0)
+    g = GroundTrack(np.array([22.0, 0.0, 0.0, 0.0]), np.diag([1.0, 1.0, 0.01, 0.01]), 0.0, 30)
+    rate = 15.0 / 20.1          # (10 + 5) m/s closing at 20.1 m depth
+    assert range_rate_update(g, rate, 0.001 ** 2, pose, 10.0, gate_sigmas=3.5) is g
+    taken = range_rate_update(g, rate, 0.001 ** 2, pose, 10.0)
+    assert taken.velocity[0] < -4.0

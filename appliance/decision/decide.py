@@ -219,9 +219,9 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
             s = scale_update(s, m, dt)
             if cfg.ground.range_rate_from_scale and fresh and g is not None and dt > 0.0 \
                     and m.kappa > -0.9:
-                g = range_rate_update(g, math.log1p(m.kappa) / dt,
-                                      m.var / ((1.0 + m.kappa) * dt) ** 2, pose,
-                                      _finite(sensors.speed_m_s))
+                var = m.var / ((1.0 + m.kappa) * dt) ** 2 * cfg.ground.range_rate_std_gain ** 2
+                g = range_rate_update(g, math.log1p(m.kappa) / dt, var, pose,
+                                      _finite(sensors.speed_m_s), cfg.ground.gate_sigmas)
     if g is not None and t - g.t_update > cfg.ground.coast_s:
         g = None
     # depth: from the 3-D state while there is one, then carried on by the expansion rate

@@ -248,19 +248,24 @@ def velocity_update(g: GroundTrack, direction: FloatArray, value: float, std: fl
 
 
 def range_rate_update(g: GroundTrack, rate_1_s: float, rate_var: float, pose: CameraPose,
-                      speed: float) -> GroundTrack:
+                      speed: float, gate_sigmas: float = math.inf) -> GroundTrack:
     """Kalman update of the velocity along the camera axis (on the road) from the object's image
     expansion rate ``rate_1_s`` (1/s, variance ``rate_var``): an object at depth Z closing at
     c expands at c / Z, so its velocity over ground along the axis d is ``v d_x - rate Z``
     (the ego vehicle drives along x at ``speed``). Z is the state's own depth; its error only
-    scales the measurement, which is small where the object does not close on its own."""
+    scales the measurement, which is small where the object does not close on its own. A
+    rate further than ``gate_sigmas`` (innovation std) from the state's is skipped."""
     z = ground_in_camera(pose, g.position)[2]
     axis = pose.rotation()[:2, 2]
     n = float(np.hypot(axis[0], axis[1]))
     if z <= 0.5 or n < 1e-6 or not math.isfinite(rate_1_s) or rate_var <= 0.0:
         return g
     d = axis / n
-    return velocity_update(g, d, speed * float(d[0]) - rate_1_s * z, math.sqrt(rate_var) * z)
+    value, var = speed * float(d[0]) - rate_1_s * z, rate_var * z * z
+    innovation = value - float(d @ g.velocity)
+    if innovation ** 2 > gate_sigmas ** 2 * (float(d @ g.P[2:, 2:] @ d) + var):
+        return g
+    return velocity_update(g, d, value, math.sqrt(var))
 
 
 def bearing_rate_update(g: GroundTrack, bearing_rate: float, speed: float, yaw_rate: float,

@@ -80,11 +80,17 @@ def test_the_height_cap_holds_where_the_background_moves_like_the_object(
 
 
 def test_nothing_to_measure_keeps_the_box(default_config: Config) -> None:
-    """A flat object (LK cannot measure its flow in the box) and degenerate inputs keep the box top."""
+    """A flat object (LK cannot measure its flow in the box), black frames and degenerate inputs
+    (negative or NaN depth, an empty or NaN box) keep the box top."""
     prev, cur = pair((1.0, 0.0), (3.0, 0.5), flat_object=True)
     assert outline(prev, cur, FEET, DEPTH_M, CAM, default_config.flow).top == FEET[1]
     assert outline(prev, cur, FEET, -1.0, CAM, default_config.flow).top == FEET[1]
     assert outline(prev, cur, (300.0, 300.0, 300.0, 310.0), DEPTH_M, CAM, default_config.flow).top == 300.0
+    assert outline(prev, cur, FEET, float("nan"), CAM, default_config.flow).top == FEET[1]
+    nan_box = (float("nan"), 290.0, 338.0, 300.0)
+    assert outline(prev, cur, nan_box, DEPTH_M, CAM, default_config.flow).top == 290.0
+    black = np.zeros_like(prev)
+    assert outline(black, black, FEET, DEPTH_M, CAM, default_config.flow).top == FEET[1]
 
 
 def test_extended_keeps_bottom_and_width() -> None:

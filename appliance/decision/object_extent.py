@@ -59,7 +59,7 @@ def outline(prev: NDArray[np.uint8], cur: NDArray[np.uint8], box: tuple[float, f
     ``expansion (x - x_box)``, so the top of a pedestrian 2 m tall at 14 m moves ~1.7 px/frame
     more upward than its feet at 30 km/h."""
     u0, v0, u1, v1 = box
-    if depth_m <= 0.0 or u1 <= u0 or v1 <= v0:
+    if not (depth_m > 0.0 and np.all(np.isfinite(box)) and u1 > u0 and v1 > v0):
         return _none(v0)
     step = max(2.0, 0.1 * camera.fy / depth_m)        # a row every 10 cm, at least 2 px
     v_min = max(0.0, v1 - max_height_m * camera.fy / depth_m)

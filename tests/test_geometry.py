@@ -109,3 +109,9 @@ def test_relative_motion_from_poses() -> None:
     X1 = A[:3, :3].T @ (X_world - A[:3, 3])
     X2 = B[:3, :3].T @ (X_world - B[:3, 3])
     np.testing.assert_allclose(R @ X1 + t, X2, atol=1e-12)
+
+
+def test_in_image_uses_pixel_centres_and_rejects_nan() -> None:
+    uv = np.array([[0.0, 0.0], [639.0, 479.0], [639.01, 10.0], [-0.01, 10.0], [10.0, 479.5],
+                   [np.nan, 10.0]])
+    assert g.in_image(uv, 640, 480).tolist() == [True, True, False, False, False, False]

@@ -13,8 +13,8 @@ upward from its top; a row belongs to the object while most of its measured flow
 with the object's own (the median flow inside the box), within ``tolerance`` of its
 length. It stops after ``max_gap`` rows that disagree, and at ``max_height_m`` above the
 box bottom at the object's depth (no road user is taller). Rows where nothing could be
-measured (flat clothing) neither extend nor stop it. Pure; the images come from the
-pipeline step.
+measured (flat clothing) neither extend nor stop it, up to ``MAX_UNMEASURED_M`` of them in a
+row. Pure; the images come from the pipeline step.
 """
 
 from __future__ import annotations
@@ -26,8 +26,8 @@ from numpy.typing import NDArray
 
 from appliance.config import FlowConfig
 from appliance.decision.tracking import ImageTrack
-from appliance.vision.flow import track
-from appliance.vision.geometry import FloatArray, PinholeCamera
+from appliance.vision.flow import flow_into
+from appliance.vision.geometry import FloatArray, PinholeCamera, in_image
 
 COLUMNS = 4          # probe columns across the box
 MIN_TOLERANCE_PX = 0.5
@@ -70,12 +70,11 @@ def outline(prev: NDArray[np.uint8], cur: NDArray[np.uint8], box: tuple[float, f
         return _none(v0)
     grid_v = np.concatenate([inside_rows, rows])
     pts = np.column_stack([np.tile(cols, len(grid_v)), np.repeat(grid_v, len(cols))])
-    ok_px = (pts[:, 0] >= 0) & (pts[:, 0] <= camera.width - 1) & (pts[:, 1] >= 0) \
-        & (pts[:, 1] <= camera.height - 1)
-    back = track(cur, prev, np.where(ok_px[:, None], pts, 0.0), np.ones(len(pts), dtype=bool), flow_cfg)
+    ok_px = in_image(pts, camera.width, camera.height)
+    flow_px, valid_px = flow_into(prev, cur, np.where(ok_px[:, None], pts, 0.0), flow_cfg)
     grid = pts.reshape(len(grid_v), len(cols), 2)
-    flow = (pts - back.end).reshape(len(grid_v), len(cols), 2)
-    valid = (back.valid & ok_px).reshape(len(grid_v), len(cols))
+    flow = flow_px.reshape(len(grid_v), len(cols), 2)
+    valid = (valid_px & ok_px).reshape(len(grid_v), len(cols))
     n_in = len(inside_rows)
     own = flow[:n_in][valid[:n_in]]
     if len(own) < 2:

@@ -25,8 +25,8 @@ from numpy.typing import NDArray
 from appliance.config import FlowConfig
 from appliance.decision.tracking import ImageTrack
 from appliance.messages import EgoMotion, SensorSample
-from appliance.vision.flow import track
-from appliance.vision.geometry import FloatArray, PinholeCamera, euler_to_matrix
+from appliance.vision.flow import flow_into
+from appliance.vision.geometry import FloatArray, PinholeCamera, euler_to_matrix, in_image
 from appliance.vision.likelihood import derotate, static_flow
 
 MIN_STATIC_FLOW_PX = 0.5   # points where the object's static flow is shorter carry no depth information
@@ -40,8 +40,7 @@ def probe_points(box: tuple[float, float, float, float], width: int, height: int
     v0 = v1 - lower * (v1 - v0)
     uu, vv = np.meshgrid(np.linspace(u0, u1, n + 2)[1:-1], np.linspace(v0, v1, n + 2)[1:-1])
     pts = np.column_stack([uu.ravel(), vv.ravel()])
-    inside = (pts[:, 0] >= 0) & (pts[:, 0] <= width - 1) & (pts[:, 1] >= 0) & (pts[:, 1] <= height - 1)
-    return pts[inside]
+    return pts[in_image(pts, width, height)]
 
 
 def cover_ratio(prev: NDArray[np.uint8], cur: NDArray[np.uint8], box: tuple[float, float, float, float],
@@ -57,15 +56,15 @@ def cover_ratio(prev: NDArray[np.uint8], cur: NDArray[np.uint8], box: tuple[floa
     pts = probe_points(box, camera.width, camera.height)
     if len(pts) == 0 or not np.all(np.isfinite(t_m)) or depth_m <= 0.0:
         return float("nan"), 0
-    back = track(cur, prev, pts, np.ones(len(pts), dtype=bool), flow_cfg)
+    flow, valid = flow_into(prev, cur, pts, flow_cfg)
     x_cur = camera.undistort(pts)
-    x_prev = camera.undistort(back.end)
+    x_prev = camera.undistort(pts - flow)
     flow_t = x_cur - derotate(camera.K, R, x_prev)
     f_s = static_flow(x_cur, camera.K, t_m, np.full(len(pts), depth_m))
     length2 = np.einsum("ij,ij->i", f_s, f_s)
     with np.errstate(invalid="ignore", divide="ignore"):
         ratio = np.einsum("ij,ij->i", flow_t, f_s) / length2
-        ok = back.valid & np.isfinite(ratio) & (length2 >= MIN_STATIC_FLOW_PX ** 2)
+        ok = valid & np.isfinite(ratio) & (length2 >= MIN_STATIC_FLOW_PX ** 2)
     if not np.any(ok):
         return float("nan"), 0
     return float(np.median(ratio[ok])), int(ok.sum())

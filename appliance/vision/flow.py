@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from appliance.config import FlowConfig
-from appliance.vision.geometry import FloatArray
+from appliance.vision.geometry import FloatArray, in_image
 
 CORNER_MIN_EIGENVALUE = 1e-3   # cornerMinEigenVal on 8-bit input; flat or black image: 0
 CORNER_QUALITY = 0.01          # a candidate needs at least this fraction of the best cell's value
@@ -70,7 +70,7 @@ def track(prev: NDArray[np.uint8], cur: NDArray[np.uint8], points: NDArray[np.fl
     nxt, status, lk_err = cv2.calcOpticalFlowPyrLK(prev, cur, pts, None, **params)  # type: ignore[call-overload]
     end = nxt.reshape(-1, 2).astype(np.float64)
     valid = status.reshape(-1).astype(bool) & np.all(np.isfinite(end), axis=1)
-    valid &= (end[:, 0] >= 0.0) & (end[:, 0] <= w - 1.0) & (end[:, 1] >= 0.0) & (end[:, 1] <= h - 1.0)
+    valid &= in_image(end, w, h)
     fb_error = np.full(m, np.nan)
     back = np.flatnonzero(np.asarray(check_backward, dtype=bool) & valid)
     if back.size:
@@ -84,6 +84,16 @@ def track(prev: NDArray[np.uint8], cur: NDArray[np.uint8], points: NDArray[np.fl
         residual = np.asarray(lk_err, dtype=np.float64).reshape(-1)
     residual = np.where(np.isfinite(residual) & valid, residual, np.inf)
     return Tracks(end, valid, fb_error, residual)
+
+
+def flow_into(prev: NDArray[np.uint8], cur: NDArray[np.uint8], points: NDArray[np.floating],
+              cfg: FlowConfig) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """The flow (M, 2) px that brought ``points`` (M, 2) of ``cur`` there from ``prev``, and
+    where it is valid (M,): :func:`track` from ``cur`` back to ``prev``, every point
+    forward-backward checked. For probing given pixels of the current frame."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    back = track(cur, prev, pts, np.ones(len(pts), dtype=bool), cfg)
+    return pts - back.end, back.valid
 
 
 def flow_covariance(prev: NDArray[np.uint8], points: NDArray[np.floating],

@@ -204,6 +204,14 @@ class PinholeCamera:
         )
 
 
+def in_image(uv: NDArray[np.floating], width: int, height: int) -> NDArray[np.bool_]:
+    """(N,) True where the pixels ``uv`` (N, 2) lie in a ``width`` x ``height`` image, pixel
+    centres ``0 <= u <= width - 1``, ``0 <= v <= height - 1`` (NaN: False)."""
+    uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
+    return np.asarray((uv[:, 0] >= 0.0) & (uv[:, 0] <= width - 1.0)
+                      & (uv[:, 1] >= 0.0) & (uv[:, 1] <= height - 1.0))
+
+
 def rotational_flow(
     camera: PinholeCamera, uv: NDArray[np.floating], R: NDArray[np.floating]
 ) -> FloatArray:

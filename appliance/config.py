@@ -143,6 +143,7 @@ class DetectionConfig:
     max_flow_px: float = _p(0.0, lo_open=True)
     lk_noise_gain: float = _p(0.0, 1000.0)
     baseline_frames: int = _p(1, 30)
+    span_frames: int = _p(1, 30)
     image_noise_gray: float = _p(0.0, 255.0)
     fb_noise_gain: float = _p(0.0, 1000.0)
     foot_probability: float = _p(0.0, 1.0)

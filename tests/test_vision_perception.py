@@ -33,8 +33,10 @@ CROSSING = Box(x_m=22.0, y_m=-3.5, width_m=0.6, height_m=1.8, vy_m_s=1.5)
 
 
 def drive(cfg: Config, frames: int, scene: Scene, speed: float = SPEED, seed: int = 0,
-          can_valid: bool = True) -> list[tuple[np.ndarray, EgoMotion, ParticleSet, tuple[float, ...]]]:
-    """Run perceive over a rendered drive; per frame: pose, ego motion, particles, crossing box."""
+          can_valid: bool = True, box_of: Box = CROSSING
+          ) -> list[tuple[np.ndarray, EgoMotion, ParticleSet, tuple[float, ...]]]:
+    """Run perceive over a rendered drive; per frame: pose, ego motion, particles, the box of
+    ``box_of`` (the crossing object by default)."""
     state = init_vision_state(cfg, CAMERA, seed)
     out = []
     for k in range(frames):
@@ -43,7 +45,7 @@ def drive(cfg: Config, frames: int, scene: Scene, speed: float = SPEED, seed: in
         frame = Frame(k, t, render(CAMERA, T, scene, t))
         sensors = SensorSample(t, speed, 0.0, can_valid=can_valid)
         state, ego, particles = perceive(state, frame, sensors, None, cfg, CAMERA)
-        box = box_bbox(CAMERA, T, CROSSING.at(t)) if scene.boxes else (0.0, 0.0, 0.0, 0.0)
+        box = box_bbox(CAMERA, T, box_of.at(t)) if scene.boxes else (0.0, 0.0, 0.0, 0.0)
         out.append((T, ego, particles, box))
     return out
 
@@ -175,3 +177,26 @@ def test_static_pool_avoids_regions_the_decision_marked_as_moving(default_config
     assert np.all(keep[pos[:, 0] >= 160] == 1.0)
     free, _ = static_pool(img, None, default_config, np.random.default_rng(0))
     assert 0.15 < np.mean(free[:, 0] < 160) < 0.35
+
+
+FAR_CROSSING = Box(x_m=55.0, y_m=-3.0, width_m=0.6, height_m=1.8, vy_m_s=1.4)
+
+
+def far_crossing_run(cfg: Config, frames: int) -> list[tuple[int, int]]:
+    """Per frame: high-weight particles on and off a pedestrian-sized box 55 m ahead."""
+    out = []
+    for _, _, particles, box in drive(cfg, frames, Scene(boxes=(FAR_CROSSING,)), box_of=FAR_CROSSING)[1:]:
+        high = particles.weights > 0.5
+        inside = on_box(particles, box)
+        out.append((int((high & inside).sum()), int((high & ~inside).sum())))
+    return out
+
+
+def test_flow_over_a_span_finds_a_slow_far_crossing_object_one_frame_cannot(default_config: Config) -> None:
+    """26 px tall, 55 m ahead, walking at 1.4 m/s: its flow differs from the static scene's
+    by 0.6 px per frame, about sigma_p; over 4 frames it is found (``span``)."""
+    one = far_crossing_run(default_config.with_overrides({"detection": {"span_frames": 1}}), 12)
+    four = far_crossing_run(default_config.with_overrides({"detection": {"span_frames": 4}}), 12)
+    assert max(on for on, _ in one) <= 2
+    on, off = four[-1]
+    assert on >= 100 and on > 3 * off

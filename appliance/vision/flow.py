@@ -51,8 +51,12 @@ def lk_params(cfg: FlowConfig) -> dict[str, object]:
 
 
 def track(prev: NDArray[np.uint8], cur: NDArray[np.uint8], points: NDArray[np.floating],
-          check_backward: NDArray[np.bool_], cfg: FlowConfig) -> Tracks:
+          check_backward: NDArray[np.bool_], cfg: FlowConfig,
+          guess: NDArray[np.floating] | None = None) -> Tracks:
     """Track ``points`` (M, 2) px from ``prev`` to ``cur`` (8-bit gray, same size).
+
+    ``guess`` (M, 2) px: where LK starts in ``cur`` (``OPTFLOW_USE_INITIAL_FLOW``; the
+    backward check then starts at ``points``), for displacements beyond the pyramid's reach.
 
     One forward LK call for all points; one backward call for the points flagged in
     ``check_backward`` (M,), which stay valid only if they come back within
@@ -67,7 +71,11 @@ def track(prev: NDArray[np.uint8], cur: NDArray[np.uint8], points: NDArray[np.fl
         empty = np.zeros((0, 2))
         return Tracks(empty, np.zeros(0, dtype=bool), np.zeros(0), np.zeros(0))
     params = lk_params(cfg)
-    nxt, status, lk_err = cv2.calcOpticalFlowPyrLK(prev, cur, pts, None, **params)  # type: ignore[call-overload]
+    init: NDArray[np.float32] | None = None
+    if guess is not None:
+        init = np.ascontiguousarray(np.asarray(guess, dtype=np.float32).reshape(-1, 1, 2))
+        params["flags"] = cv2.OPTFLOW_USE_INITIAL_FLOW
+    nxt, status, lk_err = cv2.calcOpticalFlowPyrLK(prev, cur, pts, init, **params)  # type: ignore[call-overload]
     end = nxt.reshape(-1, 2).astype(np.float64)
     valid = status.reshape(-1).astype(bool) & np.all(np.isfinite(end), axis=1)
     valid &= in_image(end, w, h)
@@ -75,7 +83,8 @@ def track(prev: NDArray[np.uint8], cur: NDArray[np.uint8], points: NDArray[np.fl
     back = np.flatnonzero(np.asarray(check_backward, dtype=bool) & valid)
     if back.size:
         fwd = np.ascontiguousarray(nxt[back])
-        ret, status_b, _ = cv2.calcOpticalFlowPyrLK(cur, prev, fwd, None, **params)  # type: ignore[call-overload]
+        home = None if init is None else np.ascontiguousarray(pts[back])
+        ret, status_b, _ = cv2.calcOpticalFlowPyrLK(cur, prev, fwd, home, **params)  # type: ignore[call-overload]
         err = np.linalg.norm(ret.reshape(-1, 2) - pts[back].reshape(-1, 2), axis=1)
         fb_error[back] = err
         ok = status_b.reshape(-1).astype(bool) & (err < cfg.fb_threshold_px)

@@ -42,6 +42,7 @@ from appliance.vision.likelihood import (
 from appliance.vision.msac import weighted_minimal_samples
 from appliance.vision.prior import PriorMotion, prior_motion
 from appliance.vision.refinement import MapProblem, refine_motion
+from appliance.vision.span import span_motion
 
 ATTITUDE_LEAK = 0.9   # per frame: the body pitch/roll estimate decays towards the mount's
 
@@ -62,7 +63,10 @@ class VisionState:
     level vehicle) to the actual one (body pitch/roll), used for the road plane;
     seed, frames: the random generator of frame k is ``default_rng([seed, k])``;
     history: (N, k-1) likelihoods of each particle's lineage in the k-1 frames before
-    (newest first, NaN: unknown; ``baseline``, k = ``detection.baseline_frames``).
+    (newest first, NaN: unknown; ``baseline``, k = ``detection.baseline_frames``);
+    earlier_images: the m-1 gray frames before ``prev_image`` and earlier_motions: the
+    camera motions into ``prev_image`` and into each of those but the oldest (newest
+    first, m = ``detection.span_frames``; ``span``).
     """
 
     seed: int
@@ -74,6 +78,8 @@ class VisionState:
     correction: FloatArray
     attitude: FloatArray
     history: FloatArray
+    earlier_images: tuple[NDArray[np.uint8], ...] = ()
+    earlier_motions: tuple[CameraMotion, ...] = ()
 
 
 def _rng(seed: int, k: int) -> np.random.Generator:
@@ -236,14 +242,17 @@ def perceive(state: VisionState, frame: Frame, sensors: SensorSample,
         foot[np.isnan(feet[:, 0])] = np.nan
     cues = motion_cues(ideal_start[:n], ideal_end[:n], motion, road, cfg.detection, cov, foot)
     likelihood = np.where(valid, np.clip(combine(cues, cfg.detection.likelihood), 0.0, 1.0), 0.0)
+    likelihood = _span_likelihood(state, image, tracks.end[:n], valid, cov, likelihood, motion, road,
+                                  foot, cfg, camera)
     history = _no_history(n, cfg) if prior.standstill else state.history
     weights = lineage_weight(likelihood, history)
     end = tracks.end[:n]
     g = _importance(cfg, camera, road)
-    particles, correction, parent, offset = resample_particles(end, weights, valid, state.correction,
-                                                               g, cfg.detection, rng)
+    particles, correction, parent, _ = resample_particles(end, weights, valid, state.correction,
+                                                          g, cfg.detection, rng)
     history = inherit_history(advance_history(history, likelihood, valid), parent)
 
+    kept = cfg.detection.span_frames - 1
     prior_dir = _unit(prior.t_m)
     ego = EgoMotion(rotation=theta[2:].copy(), translation_dir=t_dir, epipole_px=_epipole(camera, t_dir),
                     prior_rotation=prior.theta[2:].copy(), prior_translation_dir=prior_dir,
@@ -253,6 +262,38 @@ def perceive(state: VisionState, frame: Frame, sensors: SensorSample,
                       valid=valid.copy())
     new = VisionState(seed=state.seed, frames=state.frames + 1, prev_image=image, prev_t=frame.t,
                       prev_sensors=sensors, particles=particles, correction=correction,
-                      attitude=attitude, history=history)
+                      attitude=attitude, history=history,
+                      earlier_images=((state.prev_image,) + state.earlier_images)[:kept],
+                      earlier_motions=((motion,) + state.earlier_motions)[:kept])
     return new, ego, out
+
+
+def _span_likelihood(state: VisionState, image: NDArray[np.uint8], end: FloatArray,
+                     valid: NDArray[np.bool_], cov: FloatArray | None, likelihood: FloatArray,
+                     motion: CameraMotion, road: RoadPlane, foot: FloatArray | None, cfg: Config,
+                     camera: PinholeCamera) -> FloatArray:
+    """Each particle's likelihood from its flow over the last m frames (``span``): its start
+    traced back m - 1 frames, weighed with the motion composed over the span; the
+    one-frame ``likelihood`` where the trace fails, and for all while fewer than m frames
+    are known or a standstill falls in the span."""
+    m = min(cfg.detection.span_frames, len(state.earlier_images) + 1, len(state.earlier_motions) + 1)
+    if m < 2 or state.prev_image is None:
+        return likelihood
+    span = span_motion(motion, state.earlier_motions, m)
+    if span.standstill:
+        return likelihood
+    idx = np.flatnonzero(valid)
+    start, stop = state.particles[idx], end[idx]
+    back = track(state.prev_image, state.earlier_images[m - 2], start, np.ones(len(idx), dtype=bool),
+                 cfg.flow, guess=start - (m - 1) * (stop - start))
+    det = cfg.detection
+    cov_back = lk_covariance(state.prev_image, start, back.residual, cfg.flow.window_px,
+                             det.lk_noise_gain, det.image_noise_gray, back.fb_error, det.fb_noise_gain)
+    # the span's flow is the trace back plus this frame's flow: their errors add
+    total = cov_back if cov is None else (cov[idx] if cov_back is None else cov[idx] + cov_back)
+    cues = motion_cues(camera.undistort(back.end), camera.undistort(stop), span, road, det, total,
+                       None if foot is None else foot[idx])
+    out = likelihood.copy()
+    out[idx] = np.where(back.valid, np.clip(combine(cues, det.likelihood), 0.0, 1.0), likelihood[idx])
+    return out
 

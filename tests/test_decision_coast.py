@@ -3,8 +3,13 @@ coasted 3-D state (tracking.coast_warn_s), on the constructed scenes of test_dec
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Iterator
+
+from test_decision_decide import Step, crossing, run, scene
+
 from appliance.config import Config
-from test_decision_decide import crossing, run, scene
+from appliance.messages import ParticleSet
 
 VELOCITY = {"ground": {"bearing_window_s": 1.0}, "warning": {"velocity_conditioning": True}}
 
@@ -76,3 +81,29 @@ def test_hidden_track_keeps_its_ttc_from_the_coasted_state(default_config: Confi
     assert abs(ends[0] - 5.0) < 0.5
     # 1 s after its last ground contact (t = 1.3 s) it is no longer assessed
     assert all(not o.tracks for _, o in on[72:82])
+
+
+def _spurious_expansion(steps: Iterator[Step], frames: range, kappa: float) -> Iterator[Step]:
+    """The object's particles (weight > 0.5) measure an expansion of ``kappa`` per frame
+    about their centre in ``frames`` that the object does not have."""
+    for s in steps:
+        if s.frame in frames:
+            p = s.particles
+            obj = p.weights > 0.5
+            flow = p.flow.copy()
+            flow[obj] += kappa * (p.positions[obj] - p.positions[obj].mean(axis=0))
+            s = dataclasses.replace(s, particles=ParticleSet(p.positions, flow, p.weights, p.valid))
+        yield s
+
+
+def test_a_new_tracks_first_expansions_do_not_set_its_range_rate(default_config: Config) -> None:
+    """An object standing 3.5 m right of the lane, 28 m ahead, whose first 7 frames of flow
+    expand at 3 %/frame (a new track's outline settling): taken at once as closing speed
+    (the range rate from the scale cue), the velocity along the line of sight put it on a
+    collision course with a TTC under 1 s for a second; the range rate waits for
+    ``ground.scale_ttc_min_frames`` scale measurements, so no TTC and no warning."""
+    cfg = default_config
+    res = run(cfg, _spurious_expansion(scene(cfg, (28.0, -3.5), (0.0, 0.0), 8.3, 40), range(1, 8), 0.03))
+    assert all(len(o.tracks) == 1 for _, o in res[5:])
+    assert all(tr.ttc_s is None for _, o in res for tr in o.tracks)
+    assert not any(o.warnings for _, o in res)

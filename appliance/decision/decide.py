@@ -217,8 +217,10 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
                                   ego.rotation, camera)
         if m is not None:
             s = scale_update(s, m, dt)
+            # not before the scale cue itself is trusted (scale_ttc_min_frames): a new track's
+            # first expansions (its outline still settling) set a wide initial velocity at once
             if cfg.ground.range_rate_from_scale and fresh and g is not None and dt > 0.0 \
-                    and m.kappa > -0.9:
+                    and m.kappa > -0.9 and s.n >= cfg.ground.scale_ttc_min_frames:
                 var = m.var / ((1.0 + m.kappa) * dt) ** 2 * cfg.ground.range_rate_std_gain ** 2
                 g = range_rate_update(g, math.log1p(m.kappa) / dt, var, pose,
                                       _finite(sensors.speed_m_s), cfg.ground.gate_sigmas)

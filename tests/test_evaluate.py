@@ -205,3 +205,19 @@ def test_switch_of_track_during_level2_is_not_a_new_warning(tmp_path: Path,
     r = evaluate_run(rec, run, plot=False)
     assert r["level2_onsets"] == 1 and r["false_level2"] == 1
     assert r["lead_time_s"] == pytest.approx(2.5 - 41 / FPS, abs=1e-3)
+
+
+def test_a_warning_on_part_of_a_visible_mover_is_on_it(tmp_path: Path, default_config: Config) -> None:
+    """A level 2 whose box is the lower quarter of the mover's (IoU 0.22) counts as
+    on the mover, for the lead time and not as false; the same box off the mover is false."""
+    rec = write_recording(tmp_path / "rec", default_config)
+    u0, v0, u1, v1 = mover_box(60)
+    legs = [u0 + 2, v1 - 0.25 * (v1 - v0), u1 - 2, v1]
+    off = [u1 + 5, v0, u1 + 25, v0 + 20]
+    run = write_run(tmp_path / "run", [], [warning(60, 2, 4, legs)])
+    r = evaluate_run(rec, run, plot=False)
+    assert r["false_level2"] == 0
+    assert r["lead_time_s"] == pytest.approx(2.5 - 60 / FPS, abs=1e-3)
+    run2 = write_run(tmp_path / "run2", [], [warning(60, 2, 4, off)])
+    r2 = evaluate_run(rec, run2, plot=False)
+    assert r2["false_level2"] == 1 and r2["lead_time_s"] is None

@@ -66,25 +66,26 @@ TARGETS = {
 }
 
 
-def iou(a: Box | NDArray[np.float64], b: Box | NDArray[np.float64]) -> float:
-    """Intersection over union of two (u0, v0, u1, v1) boxes."""
+def _intersection(a: Box | NDArray[np.float64], b: Box | NDArray[np.float64]) -> float:
+    """Area of the overlap of two (u0, v0, u1, v1) boxes (0 when they do not overlap)."""
     iw = min(a[2], b[2]) - max(a[0], b[0])
     ih = min(a[3], b[3]) - max(a[1], b[1])
-    if iw <= 0 or ih <= 0:
+    return float(iw * ih) if iw > 0 and ih > 0 else 0.0
+
+
+def iou(a: Box | NDArray[np.float64], b: Box | NDArray[np.float64]) -> float:
+    """Intersection over union of two (u0, v0, u1, v1) boxes."""
+    inter = _intersection(a, b)
+    if inter <= 0.0:
         return 0.0
-    inter = iw * ih
     union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter
     return float(inter / union) if union > 0 else 0.0
 
 
 def inside_share(a: Box | NDArray[np.float64], b: Box | NDArray[np.float64]) -> float:
     """Share of box a's area (u0, v0, u1, v1) inside box b (0 for an empty a)."""
-    iw = min(a[2], b[2]) - max(a[0], b[0])
-    ih = min(a[3], b[3]) - max(a[1], b[1])
     area = (a[2] - a[0]) * (a[3] - a[1])
-    if iw <= 0 or ih <= 0 or area <= 0:
-        return 0.0
-    return float(iw * ih / area)
+    return float(_intersection(a, b) / area) if area > 0 else 0.0
 
 
 def clip_box(b: NDArray[np.float64], width: int, height: int) -> NDArray[np.float64]:

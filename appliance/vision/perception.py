@@ -242,17 +242,16 @@ def perceive(state: VisionState, frame: Frame, sensors: SensorSample,
         foot[np.isnan(feet[:, 0])] = np.nan
     cues = motion_cues(ideal_start[:n], ideal_end[:n], motion, road, cfg.detection, cov, foot)
     likelihood = np.where(valid, np.clip(combine(cues, cfg.detection.likelihood), 0.0, 1.0), 0.0)
-    likelihood = _span_likelihood(state, image, tracks.end[:n], valid, cov, likelihood, motion, road,
-                                  foot, cfg, camera)
+    end = tracks.end[:n]
+    likelihood = _span_likelihood(state, image, end, valid, cov, likelihood, motion, road, foot,
+                                  cfg, camera)
     history = _no_history(n, cfg) if prior.standstill else state.history
     weights = lineage_weight(likelihood, history)
-    end = tracks.end[:n]
     g = _importance(cfg, camera, road)
     particles, correction, parent, _ = resample_particles(end, weights, valid, state.correction,
                                                           g, cfg.detection, rng)
     history = inherit_history(advance_history(history, likelihood, valid), parent)
 
-    kept = cfg.detection.span_frames - 1
     prior_dir = _unit(prior.t_m)
     ego = EgoMotion(rotation=theta[2:].copy(), translation_dir=t_dir, epipole_px=_epipole(camera, t_dir),
                     prior_rotation=prior.theta[2:].copy(), prior_translation_dir=prior_dir,
@@ -260,6 +259,7 @@ def perceive(state: VisionState, frame: Frame, sensors: SensorSample,
                     confident=refined and not prior.wide, standstill=prior.standstill)
     out = ParticleSet(positions=end.copy(), flow=end - state.particles, weights=weights,
                       valid=valid.copy())
+    kept = cfg.detection.span_frames - 1   # frames the next span reaches back beyond prev_image
     new = VisionState(seed=state.seed, frames=state.frames + 1, prev_image=image, prev_t=frame.t,
                       prev_sensors=sensors, particles=particles, correction=correction,
                       attitude=attitude, history=history,
@@ -296,4 +296,3 @@ def _span_likelihood(state: VisionState, image: NDArray[np.uint8], end: FloatArr
     out = likelihood.copy()
     out[idx] = np.where(back.valid, np.clip(combine(cues, det.likelihood), 0.0, 1.0), likelihood[idx])
     return out
-

@@ -33,14 +33,11 @@ def compose(first: CameraMotion, then: CameraMotion) -> CameraMotion:
     test only needs the direction) and the result is not metric.
     """
     R = then.R @ first.R
-    metric = first.t_m is not None and then.t_m is not None
-    if first.t_m is not None and then.t_m is not None:
-        t = then.R @ first.t_m + then.t_m
-    else:
-        t = then.R @ first.t_dir + then.t_dir
+    t_m = None if first.t_m is None or then.t_m is None else then.R @ first.t_m + then.t_m
+    t = then.R @ first.t_dir + then.t_dir if t_m is None else t_m
     n = float(np.linalg.norm(t))
     t_dir = t / n if n > 0.0 else np.zeros(3)
-    return CameraMotion(R=R, t_dir=t_dir, t_m=t if metric else None,
+    return CameraMotion(R=R, t_dir=t_dir, t_m=t_m,
                         standstill=first.standstill or then.standstill, K=then.K)
 
 

@@ -276,7 +276,7 @@ def _span_likelihood(state: VisionState, image: NDArray[np.uint8], end: FloatArr
     traced back m - 1 frames, weighed with the motion composed over the span; the
     one-frame ``likelihood`` where the trace fails, and for all while fewer than m frames
     are known or a standstill falls in the span."""
-    m = min(cfg.detection.span_frames, len(state.earlier_images) + 1, len(state.earlier_motions) + 1)
+    m = min(cfg.detection.span_frames, len(state.earlier_images) + 1)   # the motions are kept alike
     if m < 2 or state.prev_image is None:
         return likelihood
     span = span_motion(motion, state.earlier_motions, m)

@@ -3,14 +3,18 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from appliance.cli import main as cli_main
 from appliance.config import Config
 from appliance.errors import UsageError
 from appliance.evaluate import evaluate_run
+from appliance.evaluation.metrics import ego_motion, ground_speed
+from appliance.evaluation.runfiles import TruthObject
 from conftest import write_small_recording
 
 FPS = 30.0
@@ -221,3 +225,47 @@ def test_a_warning_on_part_of_a_visible_mover_is_on_it(tmp_path: Path, default_c
     run2 = write_run(tmp_path / "run2", [], [warning(60, 2, 4, off)])
     r2 = evaluate_run(rec, run2, plot=False)
     assert r2["false_level2"] == 1 and r2["lead_time_s"] is None
+
+
+def test_a_mover_waiting_at_the_kerb_is_eligible_once_it_walks(tmp_path: Path,
+                                                                default_config: Config) -> None:
+    """Detection delay counts from the first frame the mover moves over the ground: a
+    pedestrian standing until frame 40 (relative velocity = the ego's, told by a static
+    object's) and tracked from frame 45 is 5 frames late, not 40; standing frames are not
+    in the tracked fraction."""
+    rec = write_recording(tmp_path / "rec", default_config)
+    data = json.loads((rec / "truth.json").read_text())
+    ped = data["objects"][0]["frames"]
+    for f in range(N):
+        ped[str(f)]["vel_vehicle"] = [-10.0, 1.4 if f >= 40 else 0.0]
+    data["objects"][1]["frames"] = {str(f): {"bbox": [10, 10, 60, 40], "visible": 1.0,
+                                             "pos_vehicle": [30.0, 4.0], "vel_vehicle": [-10.0, 0.0]}
+                                    for f in range(N)}
+    (rec / "truth.json").write_text(json.dumps(data))
+    tracks: list[dict[str, object]] = [
+        {"frame": f, "id": 5, "bbox": mover_box(f), "probability": 0.8, "flow": [0.0, 0.0],
+         "ttc_s": None, "distance_m": None} for f in range(45, N)]
+    r = evaluate_run(rec, write_run(tmp_path / "run", tracks, []), plot=False)
+    obj = r["objects"][0]
+    assert obj["first_eligible_frame"] == 40 and obj["first_detection_frame"] == 45
+    assert obj["detection_delay_frames"] == 5 and r["targets"]["detection"] is True
+    assert obj["eligible_frames"] == N - 40
+    assert obj["tracked_fraction"] == pytest.approx((N - 45) / (N - 40))
+
+
+def test_ego_motion_from_a_static_object_with_yaw() -> None:
+    """v and w from a static object's relative velocity (-v + w p_y, -w p_x); the ground
+    speed of a mover is its relative velocity minus a static point's at its position."""
+    v, w = 12.0, 0.1
+    static = TruthObject(id=2, cls="car", moving=False, frames=np.array([3, 4]),
+                         bbox=np.zeros((2, 4)), visible=np.ones(2),
+                         pos=np.array([[20.0, -3.0], [2.0, 1.0]]),
+                         vel=np.array([[-v + w * -3.0, -w * 20.0], [-v + w * 1.0, -w * 2.0]]))
+    ego = ego_motion([static])
+    assert ego[3] == pytest.approx((v, w)) and ego[4] == pytest.approx((v, w))
+    walker = TruthObject(id=1, cls="pedestrian", moving=True, frames=np.array([3, 5]),
+                         bbox=np.zeros((2, 4)), visible=np.ones(2),
+                         pos=np.array([[10.0, 2.0], [9.0, 2.0]]),
+                         vel=np.array([[-v + w * 2.0 + 1.0, -w * 10.0 - 1.0], [-v, 0.0]]))
+    speed = ground_speed(walker, ego)
+    assert speed[0] == pytest.approx(math.sqrt(2.0)) and np.isnan(speed[1])   # frame 5: no ego

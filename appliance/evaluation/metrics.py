@@ -5,7 +5,13 @@ Definitions (where the issue is silent, what a validation engineer expects):
 * **Match:** a confirmed track matches a truth object in a frame when their boxes
   have IoU >= 0.3 (the truth box clipped to the image).
 * **Eligible frames** of a mover: its truth box is at least 15 px tall inside the
-  image and at least half of it is visible.
+  image, at least half of it is visible, and it moves over the ground (faster than
+  0.3 m/s, the vision benchmark's rule): a pedestrian waiting at the kerb is
+  "moving" in truth.json but not moving independently of the static scene, which
+  is what the appliance detects. The ego motion that tells the two apart is the
+  truth itself: a static object at p moves at ``(-v + w p_y, -w p_x)`` relative to
+  the vehicle, so each frame's static object farthest ahead gives v and w. A frame
+  without one (or a mover without ``vel_vehicle``) counts as moving.
 * **First detection:** the first frame with a match; the delay is counted in
   frames from the first eligible frame (target: <= 10).
 * **Tracked fraction:** eligible frames with a match / eligible frames.
@@ -56,6 +62,7 @@ LAST_WINDOW_S = 3.0
 MIN_ATTRIBUTED_FRAMES = 3
 ATTRIBUTION_WINDOW = 15  # frames
 INSIDE_SHARE = 0.8       # a warning box this much inside a visible mover's box is on the mover
+MIN_SPEED_M_S = 0.3      # a mover slower than this over the ground is standing, not eligible
 
 TARGETS = {
     "lead_time_s": 1.5,
@@ -106,6 +113,43 @@ def _onsets(warnings: list[WarningRow]) -> tuple[list[WarningRow], list[WarningR
     return l2, l1
 
 
+def ego_motion(objects: tuple[TruthObject, ...] | list[TruthObject]
+               ) -> dict[int, tuple[float, float]]:
+    """Ego speed (m/s) and yaw rate (rad/s) per frame from the static truth objects.
+
+    A static point at p = (p_x, p_y) moves at ``(-v + w p_y, -w p_x)`` relative to the
+    vehicle (ISO 8855); per frame the static object farthest ahead (best conditioned for
+    w) gives ``w = -vel_y / p_x`` and ``v = -vel_x + w p_y``.
+    """
+    best: dict[int, tuple[float, float, float]] = {}   # frame -> (|p_x|, v, w)
+    for o in objects:
+        if o.moving or o.vel is None:
+            continue
+        for f, (px, py), (vx, vy) in zip(o.frames, o.pos, o.vel, strict=True):
+            if not (np.isfinite(px) and np.isfinite(py) and np.isfinite(vx) and np.isfinite(vy)):
+                continue
+            if abs(px) < 1.0 or abs(px) <= best.get(int(f), (0.0, 0.0, 0.0))[0]:
+                continue
+            w = -vy / px
+            best[int(f)] = (abs(px), -vx + w * py, w)
+    return {f: (v, w) for f, (_, v, w) in best.items()}
+
+
+def ground_speed(o: TruthObject, ego: dict[int, tuple[float, float]]) -> NDArray[np.float64]:
+    """(N,) speed of a truth object over the ground per frame, m/s; NaN where unknown."""
+    out = np.full(len(o.frames), np.nan)
+    if o.vel is None:
+        return out
+    for i, f in enumerate(o.frames):
+        e = ego.get(int(f))
+        if e is None:
+            continue
+        v, w = e
+        (px, py), (vx, vy) = o.pos[i], o.vel[i]
+        out[i] = math.hypot(vx - (-v + w * py), vy - (-w * px))
+    return out
+
+
 def _median(values: list[float]) -> float | None:
     return float(np.median(values)) if values else None
 
@@ -121,6 +165,7 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
     for tr in tracks:
         by_frame[tr.frame].append(tr)
     movers = [o for o in truth.objects if o.moving]
+    ego = ego_motion(truth.objects)
 
     # per frame, the best-matching track of every mover; attribution of track ids
     match: dict[int, dict[int, TrackRow]] = {o.id: {} for o in movers}
@@ -147,7 +192,9 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
         clipped = np.array([clip_box(b, width, height) for b in o.bbox]).reshape(-1, 4)
         tall = (clipped[:, 3] - clipped[:, 1]) >= MIN_HEIGHT_PX
         wide = (clipped[:, 2] - clipped[:, 0]) > 0
-        eligible = o.frames[tall & wide & (o.visible >= MIN_VISIBLE)]
+        speed = ground_speed(o, ego)
+        moving = ~(speed <= MIN_SPEED_M_S)          # NaN (unknown): counts as moving
+        eligible = o.frames[tall & wide & (o.visible >= MIN_VISIBLE) & moving]
         matched = sorted(match[o.id])
         first_eligible = int(eligible[0]) if len(eligible) else None
         first_det = int(matched[0]) if matched else None

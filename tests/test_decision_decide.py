@@ -265,3 +265,33 @@ def test_only_tracks_that_moved_are_reacquired_by_default(default_config: Config
         ids[only] = ({tr.id for _, o in res[45:] for tr in o.tracks}, before)
     assert ids[True][0] and not ids[True][0] & ids[True][1]
     assert ids[False][0] == ids[False][1]
+
+
+def test_a_box_cut_by_the_side_border_takes_its_bearing_at_its_inner_edge(
+        default_config: Config) -> None:
+    """The centre of a box cut by the left border stays near the border while the object
+    leaves the image (a constant bearing: a collision course to the monocular test); the
+    bearing is taken at the inner edge, which moves with the object. A box clear of the
+    borders keeps its track's centre."""
+    from appliance.decision.clustering import Cluster
+    from appliance.decision.decide import _bearing_pixel
+    from appliance.decision.tracking import ImageTrack
+
+    def cluster(u0: float, u1: float) -> Cluster:
+        pos = np.column_stack([np.linspace(u0, u1, 40), np.full(40, 260.0)])
+        return Cluster(bbox=(u0, 240.0, u1, 280.0), region_bbox=(u0, 240.0, u1, 280.0), n=40,
+                       foot_v=280.0, mean_flow=(0.0, 0.0), mean_probability=0.9, positions=pos,
+                       flows=np.zeros((40, 2)), s=np.ones(40), weights=np.ones(40))
+
+    def track(c: Cluster) -> ImageTrack:
+        x = np.array([[c.center[0], 0.0, 0.0], [c.center[1], 0.0, 0.0]])
+        return ImageTrack(uid=1, id=1, x=x, P=np.ones((2, 3, 3)), size=(60.0, 40.0), age=10,
+                          misses=0, cluster=c, probability=0.9)
+
+    cut = cluster(2.0, 60.0)
+    assert _bearing_pixel(track(cut), cut, CAM, default_config) == ((60.0, 260.0), "left")
+    right = cluster(580.0, 639.0)
+    assert _bearing_pixel(track(right), right, CAM, default_config) == ((580.0, 260.0), "right")
+    clear = cluster(200.0, 260.0)
+    assert _bearing_pixel(track(clear), clear, CAM, default_config) == ((230.0, 260.0), "centre")
+    assert _bearing_pixel(track(cut), None, CAM, default_config)[1] == "centre"

@@ -187,6 +187,26 @@ def test_scale_change_measured_from_correspondences() -> None:
     assert measure_expansion(cur[:3], flow[:3], np.ones(3), None, CAM) is None
 
 
+def test_a_box_cut_by_the_border_has_its_scale_fitted_along_v_only() -> None:
+    """Half of a looming car (2 %/frame) moving right as it enters from the left border, the
+    other half the static scene beside it streaming out left: fitted on both axes the
+    mixture looks like a fast expansion; along v (which the border does not cut) the car's
+    own 2 % is found (the static points at that depth expand alike)."""
+    car, car_flow = looming_points((40.0, 260.0), 1.02, n=40, seed=1)
+    car_flow = car_flow + [1.5, 0.0]
+    car = car + [1.5, 0.0]
+    scene, scene_flow = looming_points((15.0, 260.0), 1.02, n=40, seed=2)
+    scene_flow = scene_flow + [-3.0, 0.0]        # outward, to the left border
+    scene = scene + [-3.0, 0.0]
+    pos, flow = np.vstack([car, scene]), np.vstack([car_flow, scene_flow])
+    both = measure_expansion(pos, flow, np.ones(len(pos)), None, CAM)
+    along_v = measure_expansion(pos, flow, np.ones(len(pos)), None, CAM, axes=(1,))
+    assert both is not None and along_v is not None
+    assert both.kappa > 0.05                       # TTC under a second at 30 frames/s
+    assert along_v.kappa == pytest.approx(0.02, abs=2e-3)
+    assert measure_expansion(pos, flow, np.ones(len(pos)), None, CAM, axes=()) is None
+
+
 def test_scale_filter_converges_to_ttc_of_a_constant_approach() -> None:
     dt, c = 1.0 / 30.0, 10.0
     rng = np.random.default_rng(1)

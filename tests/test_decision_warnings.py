@@ -143,6 +143,9 @@ def test_weak_or_static_tracks_raise_no_level(default_config: Config) -> None:
     still = TrackThreat(threat(1, 1.0).report, True, True, moving=False)
     levels, events = run(cfg, [(still,)] * 10)
     assert events == [] and max(levels) == 0
+    flat = TrackThreat(threat(1, 1.0).report, True, True, upright=False)   # a strip of road
+    levels, events = run(cfg, [(flat,)] * 10)
+    assert events == [] and max(levels) == 0
     # once raised, a warning is held for a track that stops (a pedestrian standing in the path)
     levels, events = run(cfg, [(threat(1, 1.0),)] * 4 + [(still,)] * 10)
     assert [e.level for e in events] == [2] and levels[-1] == 2

@@ -84,6 +84,18 @@ def test_rotational_flow_is_depth_independent_and_matches_projection() -> None:
         np.testing.assert_allclose(g.rotational_flow(cam, uv0, R), uv1 - uv0, atol=1e-9)
 
 
+def test_rotate_pixels_moves_distorted_pixels_where_the_rotated_points_project() -> None:
+    """The LK guess: image (distorted) pixels of points at any depth, after a pure rotation."""
+    cam = g.PinholeCamera(640, 480, 600.0, 610.0, 320.0, 240.0, (-0.2, 0.05, 0.001, -0.001, 0.0))
+    R = g.euler_to_matrix(np.array([0.004, -0.026, 0.002]))    # a 1.5 deg pan
+    rng = np.random.default_rng(2)
+    P = np.column_stack([rng.uniform(-0.4, 0.4, 30), rng.uniform(-0.3, 0.3, 30), np.ones(30)])
+    P *= rng.uniform(2.0, 80.0, 30)[:, None]
+    uv0, uv1 = cam.project(P), cam.project(P @ R.T)
+    np.testing.assert_allclose(g.rotate_pixels(cam, uv0, R), uv1, atol=1e-4)
+    assert np.isnan(g.rotate_pixels(cam, uv0[:1], g.rot_y(np.pi))).all()   # turned behind
+
+
 def test_epipole_of_forward_motion_is_the_focus_of_expansion() -> None:
     cam = g.PinholeCamera(640, 480, 700.0, 700.0, 319.5, 239.5)
     e = g.epipole(cam, np.array([0.0, 0.0, -1.0]))

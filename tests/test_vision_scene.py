@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from appliance.config import FlowConfig, load_config
 from appliance.vision import geometry as g
-from appliance.vision.flow import FLOW_PRIOR_STD_PX, corner_candidates, flow_covariance, track
+from appliance.vision.flow import FLOW_PRIOR_STD_PX, Tracks, corner_candidates, flow_covariance, track
 
 
 def noise_texture(seed: int, size: int = 512) -> NDArray[np.float32]:
@@ -221,3 +221,29 @@ def test_lk_covariance_knows_the_aperture_problem_and_the_contrast() -> None:
         assert np.all(np.isfinite(c)) and len(c) > 0.9 * len(grid)
         stds.append(float(np.median(np.sqrt(c[:, 0] + c[:, 2]))))
     assert stds[1] > 1.5 * stds[0]                        # noisier images: less certain flows
+
+
+def test_a_guess_lets_lk_follow_a_fast_pan_and_changes_nothing_at_the_point_itself() -> None:
+    """A 20 px shift (a PTU pan of ~2 deg in a frame) is beyond the pyramid's reach from the
+    point itself for many points; from the prior rotation's guess (1 px off) every point is
+    tracked. A guess at the point itself gives exactly the unguided result, backward check
+    included: OpenCV writes its answer into the initial-flow array, and a backward search
+    started from there (at the answer) would pass every track."""
+    cfg: FlowConfig = load_config().flow
+    img0 = np.clip(cv2.resize(noise_texture(7), (640, 480)), 0, 255).astype(np.uint8)
+    img1 = np.asarray(cv2.warpAffine(img0, np.array([[1, 0, 20], [0, 1, 0]], dtype=np.float32),
+                                     (640, 480), borderMode=cv2.BORDER_REFLECT), dtype=np.uint8)
+    pts = np.random.default_rng(1).uniform([60, 40], [560, 440], (300, 2))
+    check = np.ones(len(pts), bool)
+    truth = pts + [20.0, 0.0]
+
+    def right(tr: Tracks) -> NDArray[np.bool_]:
+        return np.asarray(tr.valid & (np.linalg.norm(tr.end - truth, axis=1) < 0.2))
+
+    plain = track(img0, img1, pts, check, cfg)
+    guided = track(img0, img1, pts, check, cfg, guess=pts + [19.0, 0.5])
+    assert right(guided).mean() > 0.98
+    assert right(plain).mean() < 0.8 and (plain.valid & ~right(plain)).sum() < 0.05 * len(pts)
+    at_point = track(img0, img1, pts, check, cfg, guess=pts)
+    np.testing.assert_array_equal(at_point.valid, plain.valid)
+    np.testing.assert_array_equal(at_point.fb_error, plain.fb_error)

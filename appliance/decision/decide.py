@@ -134,10 +134,11 @@ def init_decision_state(cfg: Config, camera: PinholeCamera) -> DecisionState:
     )
 
 
-def _touches_border(c: Cluster, camera: PinholeCamera, margin: int, member_weight: float,
-                    halo_px: float) -> bool:
-    """Left, right or bottom edge of the cluster's box within ``margin`` px, plus the particle
-    spacing and the halo, of the image border (the top does not hide the ground contact).
+def _border_sides(c: Cluster, camera: PinholeCamera, margin: int, member_weight: float,
+                  halo_px: float) -> tuple[bool, bool, bool]:
+    """Whether the left, right and bottom edges of the cluster's box lie within ``margin`` px,
+    plus the particle spacing and the halo, of the image border (any: no ground contact;
+    the top does not hide it).
 
     The box spans sampled particles, so its edge is only known to about their spacing
     ``sqrt(box area / particles)``: an object cut by the border often has no particle
@@ -146,7 +147,26 @@ def _touches_border(c: Cluster, camera: PinholeCamera, margin: int, member_weigh
     u0, v0, u1, v1 = c.bbox
     n = max(int(np.count_nonzero(c.weights >= member_weight)), 1)
     m = margin + halo_px + math.sqrt(max((u1 - u0) * (v1 - v0), 0.0) / n)
-    return u0 <= m or u1 >= camera.width - m or v1 >= camera.height - m
+    return u0 <= m, u1 >= camera.width - m, v1 >= camera.height - m
+
+
+def _bearing_pixel(track: ImageTrack, c: Cluster | None, camera: PinholeCamera, cfg: Config
+                   ) -> tuple[tuple[float, float], str]:
+    """Where the track's bearing is measured, and which reference that is.
+
+    The box centre; but a box cut by the left or right image border has its centre pinned
+    near the border while the object leaves the image, so its bearing seems constant: a
+    collision course to the monocular test. Its inner edge, the object's side nearest the
+    image centre, moves with the object: the bearing is taken there ("left" / "right").
+    """
+    if c is not None:
+        left, right, _ = _border_sides(c, camera, cfg.ground.border_margin_px,
+                                       cfg.clustering.member_weight, 0.5 * cfg.flow.window_px)
+        u0, v0, u1, v1 = c.bbox
+        if left != right:
+            return ((u1, 0.5 * (v0 + v1)) if left else (u0, 0.5 * (v0 + v1))), \
+                ("left" if left else "right")
+    return (float(track.position[0]), float(track.position[1])), "centre"
 
 
 def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
@@ -167,8 +187,10 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
         s = scale_predict(s, dt, cfg.ground.scale_process_std)
     fresh = False
     c = track.cluster
-    hist = (cues.bearings if cues else ()) + ((t, bearing(camera, track.position, pose)),)
-    hist = hist[-BEARING_HISTORY:]
+    pixel, ref = _bearing_pixel(track, c, camera, cfg)
+    # a bearing from another reference point (the box reached or left the border) starts anew
+    hist = cues.bearings if cues and cues.bearing_ref == ref else ()
+    hist = (hist + ((t, bearing(camera, pixel, pose)),))[-BEARING_HISTORY:]
     window = cfg.ground.bearing_window_s
     chist = cues.sightings if cues else ()
     if c is not None and window > 0.0:
@@ -178,8 +200,9 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
         chist = chist + ((t, ray, float(cam[0]), float(cam[1]), u1 - u0),)
     chist = tuple(h for h in chist if t - h[0] <= window)
     if c is not None and track.confirmed:
-        if not _touches_border(c, camera, cfg.ground.border_margin_px,
-                               cfg.clustering.member_weight, 0.5 * cfg.flow.window_px):
+        left, right, bottom = _border_sides(c, camera, cfg.ground.border_margin_px,
+                                            cfg.clustering.member_weight, 0.5 * cfg.flow.window_px)
+        if not (left or right or bottom):
             u0, _, u1, _ = c.bbox
             contact = ground_contact(camera, (0.5 * (u0 + u1), c.foot_v - 0.5), pose, cfg.ground)
             if contact is not None:
@@ -192,7 +215,8 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
                 if found is not None and found.cues.ground is not None:
                     # the occluded object is back: its coasted state takes the contact
                     g = ground_update(found.cues.ground, contact, t)
-                    hist = (found.cues.bearings + hist)[-BEARING_HISTORY:]
+                    if found.cues.bearing_ref == ref:
+                        hist = (found.cues.bearings + hist)[-BEARING_HISTORY:]
                     chist = tuple(h for h in found.cues.sightings + chist if t - h[0] <= window)
                     moved_hold = g.updates + cfg.warning.moving_min_frames \
                         if found.cues.moved else 0
@@ -207,14 +231,17 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
                                             _finite(sensors.yaw_rate_rad_s),
                                             (cfg.mount.x_m, cfg.mount.y_m),
                                             cfg.ground.bearing_rate_std_rad_s)
+        # a border cuts the box along one axis: what enters or leaves the image there is no
+        # expansion, so the scale change is fitted along the other axis only
+        axes = tuple(a for a, cut in ((0, left or right), (1, bottom)) if not cut)
         if cfg.ground.scale_from_outline and shape is not None \
                 and len(shape.positions) >= OUTLINE_MIN_POINTS:
             m = measure_expansion(shape.positions, shape.flows, np.ones(len(shape.positions)),
-                                  ego.rotation, camera)
+                                  ego.rotation, camera, axes)
         else:
             moving = c.weights >= cfg.clustering.member_weight
             m = measure_expansion(c.positions[moving], c.flows[moving], c.weights[moving],
-                                  ego.rotation, camera)
+                                  ego.rotation, camera, axes)
         if m is not None:
             s = scale_update(s, m, dt)
             # not before the scale cue itself is trusted (scale_ttc_min_frames): a new track's
@@ -244,7 +271,8 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
         moved_t = found.cues.moved_t
     else:
         moved_t = cues.moved_t if cues else float("-inf")
-    return TrackCues(ground=g, ground_fresh=fresh, scale=s, bearings=hist, sightings=chist,
+    return TrackCues(ground=g, ground_fresh=fresh, scale=s, bearings=hist, bearing_ref=ref,
+                     sightings=chist,
                      depth=depth,
                      depth_t=depth_t, moved=moved, moved_hold=moved_hold,
                      moved_t=t if moved else moved_t,
@@ -371,8 +399,11 @@ def assess(track: ImageTrack, cues: TrackCues, sensors: SensorSample, cfg: Confi
         distance_m=None if distance is None else round(distance, 2),
         bearing_rad=None if brg is None else round(brg, 4),
     )
+    upright = True
+    if g is not None and depth is not None and depth > 0.0:
+        upright = (report.bbox[3] - report.bbox[1]) * depth / camera.fy >= w.min_height_m
     return TrackThreat(report=report, on_course=on_course, on_course_wide=on_wide,
-                       moving=cues.moved)
+                       moving=cues.moved, upright=upright)
 
 
 def decide(state: DecisionState, frame_index: int, t: float, particles: ParticleSet,

@@ -43,14 +43,19 @@ class Expansion:
 
 def measure_expansion(positions: NDArray[np.floating], flows: NDArray[np.floating],
                       weights: NDArray[np.floating], rotation: NDArray[np.floating] | None,
-                      camera: PinholeCamera) -> Expansion | None:
+                      camera: PinholeCamera, axes: tuple[int, ...] = (0, 1)) -> Expansion | None:
     """Fit ``f_i - f_bar = kappa (x_prev_i - x_bar)`` to an object's correspondences.
 
     positions (N, 2): x_t px (distorted image pixels); flows (N, 2): x_t - x_{t-1};
     weights (N,) >= 0; rotation: refined inter-frame Euler angles (rad) whose flow
-    is removed, or None. Up to two refits without outliers (3.5 robust sigma). None when fewer
-    than 4 points or a spread below 2 px.
+    is removed, or None. ``axes``: the image axes fitted (0 = u, 1 = v); an object cut
+    by the left or right image border is fitted along v only, where the cut does not
+    mix what enters the image with what stays. Up to two refits without outliers
+    (3.5 robust sigma). None when fewer than 4 points or a spread below 2 px.
     """
+    ax = list(axes)
+    if not ax:
+        return None
     cur = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
     f = np.asarray(flows, dtype=np.float64).reshape(-1, 2)
     w = np.asarray(weights, dtype=np.float64).reshape(-1)
@@ -70,19 +75,21 @@ def measure_expansion(positions: NDArray[np.floating], flows: NDArray[np.floatin
         if n < MIN_POINTS:
             return result
         ww = w[keep] / np.sum(w[keep])
-        dx = prev_i[keep] - ww @ prev_i[keep]
-        df = trans[keep] - ww @ trans[keep]
+        dx = (prev_i[keep] - ww @ prev_i[keep])[:, ax]
+        df = (trans[keep] - ww @ trans[keep])[:, ax]
+        d = len(ax)
         sxx = float(np.sum(ww * np.sum(dx * dx, axis=1)))
-        if sxx < MIN_SPREAD_PX ** 2:
+        if sxx * 2 / d < MIN_SPREAD_PX ** 2:   # rms spread, per axis as for two
             return result
         kappa = float(np.sum(ww * np.sum(dx * df, axis=1)) / sxx)
         r2 = np.sum((df - kappa * dx) ** 2, axis=1)
-        # residual variance per component, 3 fitted parameters (shift u, v and kappa)
-        sigma2 = max(float(np.sum(ww * r2)) / 2.0 * 2 * n / max(2 * n - 3, 1), 0.05 ** 2)
+        # residual variance per component; fitted: one shift per axis and kappa
+        sigma2 = max(float(np.sum(ww * r2)) / d * d * n / max(d * n - d - 1, 1), 0.05 ** 2)
         n_eff = 1.0 / float(np.sum(ww * ww))
         result = Expansion(kappa=kappa, var=sigma2 / (sxx * n_eff), n=n)
-        # robust scale of the residuals (median norm of a 2-D Gaussian is 1.177 sigma)
-        robust = max(float(np.median(np.sqrt(r2))) / 1.177, 0.05)
+        # robust scale of the residuals (median norm of a 2-D Gaussian is 1.177 sigma, of a
+        # 1-D one 0.674 sigma)
+        robust = max(float(np.median(np.sqrt(r2))) / (1.177 if d == 2 else 0.674), 0.05)
         bad = np.sqrt(r2) > 3.5 * robust
         if not np.any(bad):
             break

@@ -17,6 +17,9 @@ class TrackCues:
     ground_fresh: bool = False
     scale: ScaleState | None = None
     bearings: tuple[tuple[float, float], ...] = ()
+    # where the bearings were measured: "centre" of the box, or its inner edge when the
+    # box is cut by the "left" / "right" image border (the history restarts when this changes)
+    bearing_ref: str = "centre"
     # sightings of the cluster centre (frames with a cluster, the last bearing_window_s): t s, ray
     # direction rad and camera position x, y m in the odometry frame, cluster width px
     sightings: tuple[Sighting, ...] = ()

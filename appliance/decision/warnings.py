@@ -10,7 +10,9 @@ predicted path meets the ego corridor and with what TTC. From that:
   objects, and a false detection on the static scene converges to standing still;
   and only while the track's regions carry a mean probability of independent
   motion (eq. 20, smoothed) of at least ``min_probability``: false detections on
-  road texture are weak and patchy, real movers are not.
+  road texture are weak and patchy, real movers are not; and, with a ground contact,
+  only for a box at least ``min_height_m`` tall at that depth (a road user, not a strip
+  of road).
 * **Minimum persistence.** A track raises a level only after indicating it in
   ``min_persistence_frames`` consecutive frames: no single-frame warnings. The
   indication looks ahead by the window's length (threshold + (frames - 1) * frame
@@ -44,12 +46,15 @@ class TrackThreat:
     on_course: path meets the corridor (base margin); on_course_wide: with the
     corridor hysteresis added. ttc_s None = no contact predicted / unknown.
     moving: the track has shown independent motion over ground (needed to raise a level).
+    upright: its box is at least ``min_height_m`` tall at its depth, or its depth is unknown
+    (needed to raise a level).
     """
 
     report: TrackReport
     on_course: bool
     on_course_wide: bool
     moving: bool = True
+    upright: bool = True
 
     @property
     def ttc(self) -> float | None:
@@ -77,7 +82,7 @@ def _indicated(th: TrackThreat, threshold: float, wide: bool, hysteresis: float,
         return False
     if wide:
         return th.on_course_wide and ttc <= threshold + hysteresis
-    return th.moving and th.on_course and ttc <= threshold and \
+    return th.moving and th.upright and th.on_course and ttc <= threshold and \
         th.report.probability >= min_probability
 
 

@@ -55,8 +55,9 @@ def track(prev: NDArray[np.uint8], cur: NDArray[np.uint8], points: NDArray[np.fl
           guess: NDArray[np.floating] | None = None) -> Tracks:
     """Track ``points`` (M, 2) px from ``prev`` to ``cur`` (8-bit gray, same size).
 
-    ``guess`` (M, 2) px: where LK starts in ``cur`` (``OPTFLOW_USE_INITIAL_FLOW``; the
-    backward check then starts at ``points``), for displacements beyond the pyramid's reach.
+    ``guess`` (M, 2) px: where LK starts in ``cur`` (``OPTFLOW_USE_INITIAL_FLOW``), for
+    displacements beyond the pyramid's reach; the backward check then starts at
+    ``points + end - guess``, the inverse guess, as far from its answer as the forward search was.
 
     One forward LK call for all points; one backward call for the points flagged in
     ``check_backward`` (M,), which stay valid only if they come back within
@@ -75,7 +76,9 @@ def track(prev: NDArray[np.uint8], cur: NDArray[np.uint8], points: NDArray[np.fl
     if guess is not None:
         init = np.ascontiguousarray(np.asarray(guess, dtype=np.float32).reshape(-1, 1, 2))
         params["flags"] = cv2.OPTFLOW_USE_INITIAL_FLOW
-    nxt, status, lk_err = cv2.calcOpticalFlowPyrLK(prev, cur, pts, init, **params)  # type: ignore[call-overload]
+    # OpenCV writes its answer into the initial-flow array: hand it a copy, the guess is needed below
+    start = None if init is None else init.copy()
+    nxt, status, lk_err = cv2.calcOpticalFlowPyrLK(prev, cur, pts, start, **params)  # type: ignore[call-overload]
     end = nxt.reshape(-1, 2).astype(np.float64)
     valid = status.reshape(-1).astype(bool) & np.all(np.isfinite(end), axis=1)
     valid &= in_image(end, w, h)
@@ -83,7 +86,9 @@ def track(prev: NDArray[np.uint8], cur: NDArray[np.uint8], points: NDArray[np.fl
     back = np.flatnonzero(np.asarray(check_backward, dtype=bool) & valid)
     if back.size:
         fwd = np.ascontiguousarray(nxt[back])
-        home = None if init is None else np.ascontiguousarray(pts[back])
+        # with a guess, the backward search starts as far from the point as the forward one
+        # ended from its guess (the inverse guess), not at the answer itself
+        home = None if init is None else np.ascontiguousarray(fwd + (pts[back] - init[back]))
         ret, status_b, _ = cv2.calcOpticalFlowPyrLK(cur, prev, fwd, home, **params)  # type: ignore[call-overload]
         err = np.linalg.norm(ret.reshape(-1, 2) - pts[back].reshape(-1, 2), axis=1)
         fb_error[back] = err

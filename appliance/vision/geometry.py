@@ -227,6 +227,15 @@ def rotational_flow(
     return moved - uv
 
 
+def rotate_pixels(camera: PinholeCamera, uv: NDArray[np.floating], R: NDArray[np.floating]
+                  ) -> FloatArray:
+    """Where the rotation R alone moves image pixels ``uv`` (N, 2): distorted in, distorted out
+    (``x' ~ K R K^-1 x`` on the ideal pixels); NaN where the ray turns behind the camera."""
+    ideal = camera.undistort(uv)
+    rays = np.column_stack([ideal, np.ones(len(ideal))]) @ camera.K_inv.T
+    return camera.project(rays @ np.asarray(R, dtype=np.float64).T)
+
+
 def epipole(camera: PinholeCamera, t: NDArray[np.floating], eps: float = 1e-9) -> FloatArray | None:
     """Epipole ``K t`` in ideal pixels (the FOE for forward motion), or None at infinity.
 

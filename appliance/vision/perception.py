@@ -29,6 +29,7 @@ from appliance.vision.geometry import (
     epipole,
     euler_to_matrix,
     matrix_to_euler,
+    rotate_pixels,
     vehicle_from_camera_rotation,
 )
 from appliance.vision.likelihood import (
@@ -211,7 +212,11 @@ def perceive(state: VisionState, frame: Frame, sensors: SensorSample,
     check = np.zeros(len(start), dtype=bool)
     check[n:] = True
     check[:n] = cfg.flow.fb_check_particles
-    tracks = track(state.prev_image, image, start, check, cfg.flow)
+    guess = None
+    if cfg.flow.rotation_guess:   # LK starts where the prior rotation alone moves each point
+        guess = rotate_pixels(camera, start, prior.R)
+        guess = np.where(np.isfinite(guess), guess, start)
+    tracks = track(state.prev_image, image, start, check, cfg.flow, guess=guess)
     ideal_start = camera.undistort(start)
     ideal_end = camera.undistort(tracks.end)
 

@@ -115,3 +115,21 @@ def test_the_outline_flows_measure_the_expansion(default_config: Config) -> None
     feet = measure_expansion(shape.positions[strip], shape.flows[strip], np.ones(int(strip.sum())),
                              None, CAM)
     assert feet is None or abs(feet.kappa - 0.02) > 2 * abs(m.kappa - 0.02)
+
+
+def test_during_a_pan_the_outline_compares_the_flows_without_the_rotation(
+        default_config: Config) -> None:
+    """A PTU pan adds ~14 px to every flow: the object moves 15 px, the background 17 px.
+    From the point itself LK loses the probes and the outline stays at the box; with the
+    pan's rotation given, LK starts where the pan moved them and the flows are compared
+    without it: the whole object is found."""
+    from appliance.vision.geometry import rot_y, rotate_pixels
+
+    pan = rot_y(np.arctan(14.0 / CAM.fx))
+    centre = np.array([[320.0, 240.0]])
+    assert rotate_pixels(CAM, centre, pan)[0, 0] - 320.0 == pytest.approx(14.0, abs=0.1)
+    prev, cur = pair((15.0, 0.0), (17.0, 0.5))
+    blind = outline(prev, cur, FEET, DEPTH_M, CAM, default_config.flow).top
+    seen = outline(prev, cur, FEET, DEPTH_M, CAM, default_config.flow, rotation=pan).top
+    assert seen == pytest.approx(OBJ[1], abs=8.0)
+    assert abs(blind - OBJ[1]) > 20.0

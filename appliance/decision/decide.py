@@ -86,7 +86,7 @@ from appliance.messages import (
     TrackReport,
     WarningEvent,
 )
-from appliance.vision.geometry import PinholeCamera
+from appliance.vision.geometry import PinholeCamera, euler_to_matrix
 
 BEARING_HISTORY = 10  # frames of bearing kept per track for its rate
 OUTLINE_MIN_POINTS = 8  # outline flows the scale cue needs to prefer them to the cluster's
@@ -302,7 +302,7 @@ def moves_over_ground(g: GroundTrack, cfg: Config) -> bool:
 
 def _outline(tr: ImageTrack, cues: TrackCues | None, pose: CameraPose,
              images: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None, step_m: float,
-             cfg: Config, camera: PinholeCamera) -> Outline | None:
+             cfg: Config, camera: PinholeCamera, ego: EgoMotion) -> Outline | None:
     """The track's outline (object_extent.py) when its depth is known from the 3-D state
     (last frame's) and the frame pair is there; else None (reported as tracked)."""
     g = cues.ground if cues is not None else None
@@ -313,7 +313,7 @@ def _outline(tr: ImageTrack, cues: TrackCues | None, pose: CameraPose,
         return None
     return outline(images[0], images[1], tr.bbox, float(foot[2]), camera, cfg.flow,
                    step_m / float(foot[2]), cfg.tracking.outline_max_height_m,
-                   cfg.tracking.outline_tolerance)
+                   cfg.tracking.outline_tolerance, rotation=euler_to_matrix(ego.rotation))
 
 
 def _clip_box(box: tuple[float, float, float, float], camera: PinholeCamera
@@ -435,8 +435,8 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
     tracks = list(tracker.tracks)
     for i, tr in enumerate(tracks):
         before = state.cues.get(tr.uid)
-        shape = _outline(tr, before, pose, images, _finite(sensors.speed_m_s) * dt, cfg, camera) \
-            if tr.confirmed else None
+        shape = _outline(tr, before, pose, images, _finite(sensors.speed_m_s) * dt, cfg, camera,
+                         ego) if tr.confirmed else None
         cues[tr.uid], found = _update_cues(before, tr, t, dt, ego, sensors, pose,
                                            cfg, camera, lost, odo, shape)
         if found is not None:
@@ -446,7 +446,7 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
         if tr.confirmed:
             if shape is None:   # a 3-D state started this frame: outline it with that
                 shape = _outline(tr, cues[tr.uid], pose, images, _finite(sensors.speed_m_s) * dt,
-                                 cfg, camera)
+                                 cfg, camera, ego)
             shown = tr if shape is None else extended(tr, shape.top)
             threats.append(assess(shown, cues[tr.uid], sensors, cfg, camera))
     tracker = replace(tracker, tracks=tuple(tracks))

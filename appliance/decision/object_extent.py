@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 from appliance.config import FlowConfig
 from appliance.decision.tracking import ImageTrack
 from appliance.vision.flow import flow_into
-from appliance.vision.geometry import FloatArray, PinholeCamera, in_image
+from appliance.vision.geometry import FloatArray, PinholeCamera, in_image, rotation_origin
 
 COLUMNS = 4          # probe columns across the box
 MIN_TOLERANCE_PX = 0.5
@@ -51,13 +51,17 @@ def _none(v0: float) -> Outline:
 
 def outline(prev: NDArray[np.uint8], cur: NDArray[np.uint8], box: tuple[float, float, float, float],
             depth_m: float, camera: PinholeCamera, flow_cfg: FlowConfig, expansion: float = 0.0,
-            max_height_m: float = 2.0, tolerance: float = 0.3, max_gap: int = 2) -> Outline:
+            max_height_m: float = 2.0, tolerance: float = 0.3, max_gap: int = 2,
+            rotation: FloatArray | None = None) -> Outline:
     """The object whose lower part is ``box`` (u0, v0, u1, v1) in ``cur``, at camera depth
     ``depth_m``: its top row, ``v0`` or higher (smaller), ``v0`` when its own flow cannot be
     measured in the box. ``expansion``: the object's image scale change per frame (about
     ``speed dt / depth`` when the camera drives at it): its flow at x is that at the box plus
     ``expansion (x - x_box)``, so the top of a pedestrian 2 m tall at 14 m moves ~1.7 px/frame
-    more upward than its feet at 30 km/h."""
+    more upward than its feet at 30 km/h. ``rotation`` (3, 3): the camera's rotation since
+    ``prev`` (``X_cur = R X_prev + t``); LK starts where it alone moved each point (with
+    ``flow_cfg.rotation_guess``) and the flows are compared without it, so that during a PTU
+    pan (~15 px/frame) the tolerance is a share of the object's own motion, not of the pan's."""
     u0, v0, u1, v1 = box
     if not (depth_m > 0.0 and np.all(np.isfinite(box)) and u1 > u0 and v1 > v0):
         return _none(v0)
@@ -71,9 +75,13 @@ def outline(prev: NDArray[np.uint8], cur: NDArray[np.uint8], box: tuple[float, f
     grid_v = np.concatenate([inside_rows, rows])
     pts = np.column_stack([np.tile(cols, len(grid_v)), np.repeat(grid_v, len(cols))])
     ok_px = in_image(pts, camera.width, camera.height)
-    flow_px, valid_px = flow_into(prev, cur, np.where(ok_px[:, None], pts, 0.0), flow_cfg)
+    probe = np.where(ok_px[:, None], pts, 0.0)
+    origin = probe if rotation is None else rotation_origin(camera, probe, rotation)
+    flow_px, valid_px = flow_into(prev, cur, probe, flow_cfg,
+                                  origin if rotation is not None and flow_cfg.rotation_guess else None)
     grid = pts.reshape(len(grid_v), len(cols), 2)
-    flow = flow_px.reshape(len(grid_v), len(cols), 2)
+    raw = flow_px.reshape(len(grid_v), len(cols), 2)
+    flow = raw - (probe - origin).reshape(len(grid_v), len(cols), 2)   # the rotation's flow removed
     valid = (valid_px & ok_px).reshape(len(grid_v), len(cols))
     n_in = len(inside_rows)
     own = flow[:n_in][valid[:n_in]]
@@ -102,7 +110,7 @@ def outline(prev: NDArray[np.uint8], cur: NDArray[np.uint8], box: tuple[float, f
                 break
     use = agree[: last + 1]
     return Outline(top=float(max(top, v_min)), positions=grid[: last + 1][use],
-                   flows=flow[: last + 1][use])
+                   flows=raw[: last + 1][use])
 
 
 def extended(track_: ImageTrack, top: float) -> ImageTrack:

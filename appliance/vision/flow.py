@@ -101,12 +101,14 @@ def track(prev: NDArray[np.uint8], cur: NDArray[np.uint8], points: NDArray[np.fl
 
 
 def flow_into(prev: NDArray[np.uint8], cur: NDArray[np.uint8], points: NDArray[np.floating],
-              cfg: FlowConfig) -> tuple[FloatArray, NDArray[np.bool_]]:
+              cfg: FlowConfig, guess: NDArray[np.floating] | None = None
+              ) -> tuple[FloatArray, NDArray[np.bool_]]:
     """The flow (M, 2) px that brought ``points`` (M, 2) of ``cur`` there from ``prev``, and
     where it is valid (M,): :func:`track` from ``cur`` back to ``prev``, every point
-    forward-backward checked. For probing given pixels of the current frame."""
+    forward-backward checked. For probing given pixels of the current frame. ``guess``
+    (M, 2) px: where in ``prev`` to start looking (see :func:`track`)."""
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    back = track(cur, prev, pts, np.ones(len(pts), dtype=bool), cfg)
+    back = track(cur, prev, pts, np.ones(len(pts), dtype=bool), cfg, guess=guess)
     return pts - back.end, back.valid
 
 

@@ -236,6 +236,16 @@ def rotate_pixels(camera: PinholeCamera, uv: NDArray[np.floating], R: NDArray[np
     return camera.project(rays @ np.asarray(R, dtype=np.float64).T)
 
 
+def rotation_origin(camera: PinholeCamera, uv: NDArray[np.floating], R: NDArray[np.floating]
+                    ) -> FloatArray:
+    """Where pixels ``uv`` (N, 2) of the current frame were in the previous one if the camera
+    motion ``X_cur = R X_prev + t`` were the rotation alone (``rotate_pixels`` by R^T); the
+    pixel itself where that is undefined. The start of a backward LK search."""
+    back = rotate_pixels(camera, uv, np.asarray(R, dtype=np.float64).T)
+    uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
+    return np.where(np.isfinite(back), back, uv)
+
+
 def epipole(camera: PinholeCamera, t: NDArray[np.floating], eps: float = 1e-9) -> FloatArray | None:
     """Epipole ``K t`` in ideal pixels (the FOE for forward motion), or None at infinity.
 

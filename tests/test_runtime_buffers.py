@@ -73,6 +73,22 @@ def test_interpolation_hold_and_staleness() -> None:
     assert SignalHistory().at(1.0, 0.2) is None
 
 
+def test_the_ptu_is_extrapolated_past_its_newest_answer_can_is_held() -> None:
+    """A pan at 0.35 rad/s answered at 20 Hz: 30 ms after the last answer the pan is where
+    the last two answers' slope puts it (holding it would be 10 mrad = 0.6 deg behind);
+    never further than stale_s ahead. CAN is held."""
+    s = SensorSync(can_stale_s=0.2, ptu_stale_s=0.1)
+    for k in range(3):
+        s.add_ptu(0.05 * k, 0.35 * 0.05 * k, 0.0)
+        s.add_speed(0.05 * k, 10.0 + k)
+        s.add_yaw_rate(0.05 * k, 0.0)
+    x = s.sample(0.13)
+    assert x.pan_rad == pytest.approx(0.35 * 0.13) and x.ptu_valid
+    assert x.speed_m_s == 12.0
+    late = s.sample(0.5)
+    assert late.pan_rad == pytest.approx(0.35 * (0.1 + 0.1)) and not late.ptu_valid
+
+
 def test_out_of_order_samples_stay_sorted() -> None:
     h = SignalHistory()
     for t, v in [(1.0, 1.0), (1.2, 3.0), (1.1, 2.0)]:

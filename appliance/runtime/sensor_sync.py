@@ -4,7 +4,7 @@ The processing thread owns one :class:`SensorSync`; it feeds it the samples that
 the drivers (live) or the recording (replay) delivered, then asks for a
 :class:`~appliance.messages.SensorSample` at each frame's capture time. Between
 two samples the value is interpolated linearly; after the newest sample it is
-held. A signal whose nearest sample is older than ``stale_s`` is invalid
+held (CAN) or continued along the last two samples' slope (the PTU's pan and tilt). A signal whose nearest sample is older than ``stale_s`` is invalid
 (``can_valid`` / ``ptu_valid`` False); with no PTU at all the PTU is at zero and
 valid, as the spec says for a recording without ``ptu.csv``.
 """
@@ -51,8 +51,10 @@ class SignalHistory:
     def __len__(self) -> int:
         return len(self._t)
 
-    def at(self, t: float, stale_s: float) -> SignalReading | None:
-        """Value at ``t``: interpolated between neighbours, held after the newest; None if empty."""
+    def at(self, t: float, stale_s: float, extrapolate: bool = False) -> SignalReading | None:
+        """Value at ``t``: interpolated between neighbours, held after the newest (with
+        ``extrapolate``: continued along the last two samples' slope for at most ``stale_s``);
+        None if empty."""
         if not self._t:
             return None
         i = bisect.bisect_left(self._t, t)
@@ -61,7 +63,11 @@ class SignalHistory:
         if i == 0:
             return SignalReading(self._v[0], self._t[0] - t <= stale_s)
         if i == len(self._t):
-            return SignalReading(self._v[-1], t - self._t[-1] <= stale_s)
+            fresh = t - self._t[-1] <= stale_s
+            if extrapolate and len(self._t) >= 2 and self._t[-1] > self._t[-2]:
+                slope = (self._v[-1] - self._v[-2]) / (self._t[-1] - self._t[-2])
+                return SignalReading(self._v[-1] + slope * min(t - self._t[-1], stale_s), fresh)
+            return SignalReading(self._v[-1], fresh)
         t0, t1 = self._t[i - 1], self._t[i]
         w = (t - t0) / (t1 - t0)
         value = self._v[i - 1] * (1.0 - w) + self._v[i] * w
@@ -110,8 +116,10 @@ class SensorSync:
             self._last_yaw = yr.value
         if not self.ptu_present:
             return SensorSample(t, self._last_speed, self._last_yaw, 0.0, 0.0, can_valid, True)
-        pa = self.pan.at(t, self.ptu_stale_s)
-        ti = self.tilt.at(t, self.ptu_stale_s)
+        # the PTU answers position queries at ~20 Hz, so a frame's time is often past its newest
+        # answer: during a pan (20 deg/s) holding that answer puts the prior up to 1 deg behind
+        pa = self.pan.at(t, self.ptu_stale_s, extrapolate=True)
+        ti = self.tilt.at(t, self.ptu_stale_s, extrapolate=True)
         ptu_valid = pa is not None and ti is not None and pa.fresh and ti.fresh
         if pa is not None and ti is not None:
             self._last_pan, self._last_tilt = pa.value, ti.value

@@ -274,7 +274,7 @@ def test_a_box_cut_by_the_side_border_takes_its_bearing_at_its_inner_edge(
     bearing is taken at the inner edge, which moves with the object. A box clear of the
     borders keeps its track's centre."""
     from appliance.decision.clustering import Cluster
-    from appliance.decision.decide import _bearing_pixel
+    from appliance.decision.decide import _bearing_pixel, _border_sides
     from appliance.decision.tracking import ImageTrack
 
     def cluster(u0: float, u1: float) -> Cluster:
@@ -288,10 +288,18 @@ def test_a_box_cut_by_the_side_border_takes_its_bearing_at_its_inner_edge(
         return ImageTrack(uid=1, id=1, x=x, P=np.ones((2, 3, 3)), size=(60.0, 40.0), age=10,
                           misses=0, cluster=c, probability=0.9)
 
+    cfg = default_config
+
+    def bearing_pixel(tr: ImageTrack, c: Cluster | None) -> tuple[tuple[float, float], str]:
+        sides = (False, False, False) if c is None else _border_sides(
+            c, CAM, cfg.ground.border_margin_px, cfg.clustering.member_weight,
+            0.5 * cfg.flow.window_px)
+        return _bearing_pixel(tr, c, sides)
+
     cut = cluster(2.0, 60.0)
-    assert _bearing_pixel(track(cut), cut, CAM, default_config) == ((60.0, 260.0), "left")
+    assert bearing_pixel(track(cut), cut) == ((60.0, 260.0), "left")
     right = cluster(580.0, 639.0)
-    assert _bearing_pixel(track(right), right, CAM, default_config) == ((580.0, 260.0), "right")
+    assert bearing_pixel(track(right), right) == ((580.0, 260.0), "right")
     clear = cluster(200.0, 260.0)
-    assert _bearing_pixel(track(clear), clear, CAM, default_config) == ((230.0, 260.0), "centre")
-    assert _bearing_pixel(track(cut), None, CAM, default_config)[1] == "centre"
+    assert bearing_pixel(track(clear), clear) == ((230.0, 260.0), "centre")
+    assert bearing_pixel(track(cut), None)[1] == "centre"

@@ -150,7 +150,7 @@ def _border_sides(c: Cluster, camera: PinholeCamera, margin: int, member_weight:
     return u0 <= m, u1 >= camera.width - m, v1 >= camera.height - m
 
 
-def _bearing_pixel(track: ImageTrack, c: Cluster | None, camera: PinholeCamera, cfg: Config
+def _bearing_pixel(track: ImageTrack, c: Cluster | None, sides: tuple[bool, bool, bool]
                    ) -> tuple[tuple[float, float], str]:
     """Where the track's bearing is measured, and which reference that is.
 
@@ -159,9 +159,8 @@ def _bearing_pixel(track: ImageTrack, c: Cluster | None, camera: PinholeCamera, 
     collision course to the monocular test. Its inner edge, the object's side nearest the
     image centre, moves with the object: the bearing is taken there ("left" / "right").
     """
+    left, right, _ = sides     # of c (:func:`_border_sides`)
     if c is not None:
-        left, right, _ = _border_sides(c, camera, cfg.ground.border_margin_px,
-                                       cfg.clustering.member_weight, 0.5 * cfg.flow.window_px)
         u0, v0, u1, v1 = c.bbox
         if left != right:
             return ((u1, 0.5 * (v0 + v1)) if left else (u0, 0.5 * (v0 + v1))), \
@@ -187,7 +186,9 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
         s = scale_predict(s, dt, cfg.ground.scale_process_std)
     fresh = False
     c = track.cluster
-    pixel, ref = _bearing_pixel(track, c, camera, cfg)
+    sides = (False, False, False) if c is None else _border_sides(
+        c, camera, cfg.ground.border_margin_px, cfg.clustering.member_weight, 0.5 * cfg.flow.window_px)
+    pixel, ref = _bearing_pixel(track, c, sides)
     # a bearing from another reference point (the box reached or left the border) starts anew
     hist = cues.bearings if cues and cues.bearing_ref == ref else ()
     hist = (hist + ((t, bearing(camera, pixel, pose)),))[-BEARING_HISTORY:]
@@ -200,8 +201,7 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
         chist = chist + ((t, ray, float(cam[0]), float(cam[1]), u1 - u0),)
     chist = tuple(h for h in chist if t - h[0] <= window)
     if c is not None and track.confirmed:
-        left, right, bottom = _border_sides(c, camera, cfg.ground.border_margin_px,
-                                            cfg.clustering.member_weight, 0.5 * cfg.flow.window_px)
+        left, right, bottom = sides
         if not (left or right or bottom):
             u0, _, u1, _ = c.bbox
             contact = ground_contact(camera, (0.5 * (u0 + u1), c.foot_v - 0.5), pose, cfg.ground)

@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 from appliance.config import FlowConfig
 from appliance.decision.tracking import ImageTrack
 from appliance.vision.flow import flow_into
-from appliance.vision.geometry import FloatArray, PinholeCamera, in_image, rotation_origin
+from appliance.vision.geometry import FloatArray, PinholeCamera, in_image, lk_start
 
 COLUMNS = 4          # probe columns across the box
 MIN_TOLERANCE_PX = 0.5
@@ -76,7 +76,7 @@ def outline(prev: NDArray[np.uint8], cur: NDArray[np.uint8], box: tuple[float, f
     pts = np.column_stack([np.tile(cols, len(grid_v)), np.repeat(grid_v, len(cols))])
     ok_px = in_image(pts, camera.width, camera.height)
     probe = np.where(ok_px[:, None], pts, 0.0)
-    origin = probe if rotation is None else rotation_origin(camera, probe, rotation)
+    origin = probe if rotation is None else lk_start(camera, probe, np.asarray(rotation).T)
     flow_px, valid_px = flow_into(prev, cur, probe, flow_cfg,
                                   origin if rotation is not None and flow_cfg.rotation_guess else None)
     grid = pts.reshape(len(grid_v), len(cols), 2)

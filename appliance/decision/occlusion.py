@@ -26,7 +26,7 @@ from appliance.config import FlowConfig
 from appliance.decision.tracking import ImageTrack
 from appliance.messages import EgoMotion, SensorSample
 from appliance.vision.flow import flow_into
-from appliance.vision.geometry import FloatArray, PinholeCamera, euler_to_matrix, in_image, rotation_origin
+from appliance.vision.geometry import FloatArray, PinholeCamera, euler_to_matrix, in_image, lk_start
 from appliance.vision.likelihood import derotate, static_flow
 
 MIN_STATIC_FLOW_PX = 0.5   # points where the object's static flow is shorter carry no depth information
@@ -57,7 +57,7 @@ def cover_ratio(prev: NDArray[np.uint8], cur: NDArray[np.uint8], box: tuple[floa
     if len(pts) == 0 or not np.all(np.isfinite(t_m)) or depth_m <= 0.0:
         return float("nan"), 0
     flow, valid = flow_into(prev, cur, pts, flow_cfg,
-                            rotation_origin(camera, pts, R) if flow_cfg.rotation_guess else None)
+                            lk_start(camera, pts, R.T) if flow_cfg.rotation_guess else None)
     x_cur = camera.undistort(pts)
     x_prev = camera.undistort(pts - flow)
     flow_t = x_cur - derotate(camera.K, R, x_prev)

@@ -236,14 +236,13 @@ def rotate_pixels(camera: PinholeCamera, uv: NDArray[np.floating], R: NDArray[np
     return camera.project(rays @ np.asarray(R, dtype=np.float64).T)
 
 
-def rotation_origin(camera: PinholeCamera, uv: NDArray[np.floating], R: NDArray[np.floating]
-                    ) -> FloatArray:
-    """Where pixels ``uv`` (N, 2) of the current frame were in the previous one if the camera
-    motion ``X_cur = R X_prev + t`` were the rotation alone (``rotate_pixels`` by R^T); the
-    pixel itself where that is undefined. The start of a backward LK search."""
-    back = rotate_pixels(camera, uv, np.asarray(R, dtype=np.float64).T)
+def lk_start(camera: PinholeCamera, uv: NDArray[np.floating], R: NDArray[np.floating]) -> FloatArray:
+    """Where a Lucas-Kanade search for pixels ``uv`` (N, 2) starts in the other frame, the
+    camera having rotated by R from ``uv``'s frame to it: :func:`rotate_pixels`, or the pixel
+    itself where that is undefined (the ray turned behind the camera)."""
+    moved = rotate_pixels(camera, uv, R)
     uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
-    return np.where(np.isfinite(back), back, uv)
+    return np.where(np.isfinite(moved), moved, uv)
 
 
 def epipole(camera: PinholeCamera, t: NDArray[np.floating], eps: float = 1e-9) -> FloatArray | None:

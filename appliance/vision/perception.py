@@ -28,8 +28,8 @@ from appliance.vision.geometry import (
     PinholeCamera,
     epipole,
     euler_to_matrix,
+    lk_start,
     matrix_to_euler,
-    rotate_pixels,
     vehicle_from_camera_rotation,
 )
 from appliance.vision.likelihood import (
@@ -212,10 +212,8 @@ def perceive(state: VisionState, frame: Frame, sensors: SensorSample,
     check = np.zeros(len(start), dtype=bool)
     check[n:] = True
     check[:n] = cfg.flow.fb_check_particles
-    guess = None
-    if cfg.flow.rotation_guess:   # LK starts where the prior rotation alone moves each point
-        guess = rotate_pixels(camera, start, prior.R)
-        guess = np.where(np.isfinite(guess), guess, start)
+    # LK starts where the prior rotation alone moves each point
+    guess = lk_start(camera, start, prior.R) if cfg.flow.rotation_guess else None
     tracks = track(state.prev_image, image, start, check, cfg.flow, guess=guess)
     ideal_start = camera.undistort(start)
     ideal_end = camera.undistort(tracks.end)

@@ -60,7 +60,8 @@ def test_hidden_track_keeps_its_ttc_from_the_coasted_state(default_config: Confi
     with the occlusion test on when nothing shows an occluder."""
     hidden = frozenset(range(40, 85))
     obj0, vel = crossing(8.0, 1.4, 5.0, -0.45)
-    base = default_config.with_overrides({"tracking": {"reacquire_s": 2.0}, **VELOCITY})
+    base = default_config.with_overrides({"tracking": {"reacquire_s": 2.0, "coast_warn_s": 0.0},
+                                          **VELOCITY})
     off = run(base, scene(base, obj0, vel, 8.0, 90, hidden=hidden))
     # these constructed scenes have no images: the occlusion test (occlusion.py) is off here
     cfg = base.with_overrides({"tracking": {"coast_warn_s": 1.0, "coast_cover_ratio": 0.0}})

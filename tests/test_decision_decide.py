@@ -222,7 +222,8 @@ def test_long_occlusion_reacquires_the_lost_track(default_config: Config) -> Non
     coasted 3-D state takes the reappearing object back under its id, moving at once."""
     hidden = frozenset(range(40, 70))
     obj0, vel = crossing(8.0, 1.4, 5.0, -0.45)
-    off = run(default_config, scene(default_config, obj0, vel, 8.0, 90, hidden=hidden))
+    no = default_config.with_overrides({"tracking": {"reacquire_s": 0.0, "coast_warn_s": 0.0}})
+    off = run(no, scene(no, obj0, vel, 8.0, 90, hidden=hidden))
     cfg = default_config.with_overrides({"tracking": {"reacquire_s": 2.0}})
     on = run(cfg, scene(cfg, obj0, vel, 8.0, 90, hidden=hidden))
     before = {tr.id for tr in on[38][1].tracks}

@@ -143,6 +143,12 @@ def test_weak_or_static_tracks_raise_no_level(default_config: Config) -> None:
     still = TrackThreat(threat(1, 1.0).report, True, True, moving=False)
     levels, events = run(cfg, [(still,)] * 10)
     assert events == [] and max(levels) == 0
+    # a hidden track assessed from its coasted state has its own, lower bar (its region was
+    # thinned out by the occluder before it was lost)
+    hidden = TrackThreat(replace(threat(1, 1.0).report, probability=0.6), True, True, coasted=True)
+    assert cfg.coast_min_probability < 0.6 < cfg.min_probability
+    levels, events = run(cfg, [(hidden,)] * 10)
+    assert [e.level for e in events] == [2]
     flat = TrackThreat(threat(1, 1.0).report, True, True, upright=False)   # a strip of road
     levels, events = run(cfg, [(flat,)] * 10)
     assert events == [] and max(levels) == 0

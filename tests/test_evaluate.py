@@ -269,3 +269,30 @@ def test_ego_motion_from_a_static_object_with_yaw() -> None:
                          vel=np.array([[-v + w * 2.0 + 1.0, -w * 10.0 - 1.0], [-v, 0.0]]))
     speed = ground_speed(walker, ego)
     assert speed[0] == pytest.approx(math.sqrt(2.0)) and np.isnan(speed[1])   # frame 5: no ego
+
+
+def test_a_warning_from_the_objects_own_track_while_it_is_hidden_is_on_it(
+        tmp_path: Path, default_config: Config) -> None:
+    """The mover is hidden (10 % visible) from frame 45 to 70; its track matched it until
+    frame 40 and warns at frame 60 (20 frames later) from its coasted state, with a box where
+    nothing of the mover shows: that is a warning on the mover (lead 2.5 - 60/30 s), not a
+    false one. The same when the track last matched 21 frames before the occlusion: false."""
+    rec = write_recording(tmp_path / "rec", default_config)
+    data = json.loads((rec / "truth.json").read_text())
+    for f in range(45, 71):
+        data["objects"][0]["frames"][str(f)]["visible"] = 0.1
+    (rec / "truth.json").write_text(json.dumps(data))
+    elsewhere = [10.0, 200.0, 20.0, 210.0]
+
+    def run_with(last: int, name: str) -> dict[str, object]:
+        tracks: list[dict[str, object]] = [
+            {"frame": f, "id": 5, "bbox": mover_box(f), "probability": 0.8, "flow": [0.0, 0.0],
+             "ttc_s": None, "distance_m": None} for f in range(10, last + 1)]
+        run = write_run(tmp_path / name, tracks, [warning(60, 2, 5, elsewhere)])
+        return evaluate_run(rec, run, plot=False)
+
+    r = run_with(40, "run")
+    assert r["false_level2"] == 0
+    assert r["lead_time_s"] == pytest.approx(2.5 - 60 / FPS, abs=1e-3)
+    r2 = run_with(24, "run2")
+    assert r2["false_level2"] == 1 and r2["lead_time_s"] is None

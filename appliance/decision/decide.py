@@ -277,7 +277,9 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
                      depth_t=depth_t, moved=moved, moved_hold=moved_hold,
                      moved_t=t if moved else moved_t,
                      peak_probability=max(cues.peak_probability if cues else 0.0,
-                                          float(track.probability))), found
+                                          float(track.probability)),
+                     peak_height_m=max(cues.peak_height_m if cues else 0.0,
+                                       found.cues.peak_height_m if found else 0.0)), found
 
 
 def moves_over_ground(g: GroundTrack, cfg: Config) -> bool:
@@ -399,11 +401,16 @@ def assess(track: ImageTrack, cues: TrackCues, sensors: SensorSample, cfg: Confi
         distance_m=None if distance is None else round(distance, 2),
         bearing_rad=None if brg is None else round(brg, 4),
     )
+    # a road user stands up from its ground contact: its box, now or at some time it was seen
+    # (a hidden, coasted track keeps the strip it was lost with), is at least min_height_m tall
+    height: float | None = None
     upright = True
     if g is not None and depth is not None and depth > 0.0:
-        upright = (report.bbox[3] - report.bbox[1]) * depth / camera.fy >= w.min_height_m
+        if track.cluster is not None:
+            height = (report.bbox[3] - report.bbox[1]) * depth / camera.fy
+        upright = max(height or 0.0, cues.peak_height_m) >= w.min_height_m
     return TrackThreat(report=report, on_course=on_course, on_course_wide=on_wide,
-                       moving=cues.moved, upright=upright)
+                       moving=cues.moved, upright=upright, height_m=height)
 
 
 def decide(state: DecisionState, frame_index: int, t: float, particles: ParticleSet,
@@ -448,7 +455,10 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
                 shape = _outline(tr, cues[tr.uid], pose, images, _finite(sensors.speed_m_s) * dt,
                                  cfg, camera, ego)
             shown = tr if shape is None else extended(tr, shape.top)
-            threats.append(assess(shown, cues[tr.uid], sensors, cfg, camera))
+            th = assess(shown, cues[tr.uid], sensors, cfg, camera)
+            if th.height_m is not None and th.height_m > cues[tr.uid].peak_height_m:
+                cues[tr.uid] = replace(cues[tr.uid], peak_height_m=th.height_m)
+            threats.append(th)
     tracker = replace(tracker, tracks=tuple(tracks))
     if cfg.tracking.coast_warn_s > 0.0:
         seen: list[LostTrack] = []
@@ -460,7 +470,7 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
                 lt = replace(lt, cover=(*lt.cover[1 - cfg.tracking.coast_cover_frames:], ratio))
             seen.append(lt)
             if coasted is not None and lt.covered(cfg):
-                threats.append(assess(*coasted, sensors, cfg, camera))
+                threats.append(replace(assess(*coasted, sensors, cfg, camera), coasted=True))
         lost = tuple(seen)
     threats.sort(key=lambda th: th.report.id)
     warning, events, warned = warning_step(state.warning, tuple(threats), t, frame_index,

@@ -29,3 +29,4 @@ class TrackCues:
     moved_hold: int = 0  # a reacquired track counts as moving while its state has fewer contacts
     moved_t: float = float("-inf")  # s, when it last counted as moving
     peak_probability: float = 0.0  # the track's highest (smoothed) eq. 20 probability so far
+    peak_height_m: float = 0.0  # the tallest its reported box has been at its depth while seen, m

@@ -46,8 +46,10 @@ class TrackThreat:
     on_course: path meets the corridor (base margin); on_course_wide: with the
     corridor hysteresis added. ttc_s None = no contact predicted / unknown.
     moving: the track has shown independent motion over ground (needed to raise a level).
-    upright: its box is at least ``min_height_m`` tall at its depth, or its depth is unknown
-    (needed to raise a level).
+    upright: its box is, or while seen was, at least ``min_height_m`` tall at its depth, or
+    its depth is unknown (needed to raise a level); height_m: its box's height at its depth
+    this frame (m), None when not seen or its depth is unknown. coasted: a hidden track
+    assessed from its coasted 3-D state (``coast_min_probability`` instead of ``min_probability``).
     """
 
     report: TrackReport
@@ -55,6 +57,8 @@ class TrackThreat:
     on_course_wide: bool
     moving: bool = True
     upright: bool = True
+    height_m: float | None = None
+    coasted: bool = False
 
     @property
     def ttc(self) -> float | None:
@@ -102,10 +106,9 @@ def warning_step(state: WarningState, threats: tuple[TrackThreat, ...], t: float
     for th in threats:
         tid = th.report.id
         old = state.streaks.get(tid, (0, 0))
-        s1 = old[0] + 1 if _indicated(th, thresholds[1] + lookahead, False, 0.0,
-                                      cfg.min_probability) else 0
-        s2 = old[1] + 1 if _indicated(th, thresholds[2] + lookahead, False, 0.0,
-                                      cfg.min_probability) else 0
+        p_min = cfg.coast_min_probability if th.coasted else cfg.min_probability
+        s1 = old[0] + 1 if _indicated(th, thresholds[1] + lookahead, False, 0.0, p_min) else 0
+        s2 = old[1] + 1 if _indicated(th, thresholds[2] + lookahead, False, 0.0, p_min) else 0
         streaks[tid] = (s1, s2)
         level = 0
         for k, streak in ((2, s2), (1, s1)):

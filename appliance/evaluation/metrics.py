@@ -24,7 +24,9 @@ Definitions (where the issue is silent, what a validation engineer expects):
   object at or before ``collision_t``; null when there was none (a missed
   warning). A warning is on an object when its box matches the object's truth
   box in that frame, or when its track is attributed to the object and matched
-  it within 15 frames (0.5 s at 30 fps) of the warning.
+  it within 15 frames (0.5 s at 30 fps) of the warning, or within 15 frames before an
+  occlusion (the object less than half visible) that lasts until the warning: a hidden
+  object's coasted track cannot match it.
 * **False level-2 warnings:** level-2 onsets (a level-2 event after a lower
   level; a change of the track behind a continuing level 2 is not a new warning
   for the driver) in a no-collision scenario, or, in a collision scenario, not on
@@ -230,6 +232,17 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
         if w.track is None or owner.get(w.track) != o.id:
             return False
         near = range(w.frame - ATTRIBUTION_WINDOW, w.frame + ATTRIBUTION_WINDOW + 1)
+        if any(f in match[o.id] and match[o.id][f].id == w.track for f in near):
+            return True
+        # the object's own track, warning while the object is hidden: the track matched it
+        # within ATTRIBUTION_WINDOW frames before an occlusion (less than half visible) that
+        # lasts until the warning (a hidden object's coasted track cannot match it)
+        i = o.at(w.frame)
+        if i is None or o.visible[i] >= MIN_VISIBLE:
+            return False
+        shown = np.flatnonzero((o.visible >= MIN_VISIBLE) & (o.frames < w.frame))
+        hidden_from = int(o.frames[shown[-1]]) + 1 if len(shown) else int(o.frames[0])
+        near = range(hidden_from - ATTRIBUTION_WINDOW, hidden_from)
         return any(f in match[o.id] and match[o.id][f].id == w.track for f in near)
 
     if truth.collision:

@@ -231,8 +231,11 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
                 return True
         if w.track is None or owner.get(w.track) != o.id:
             return False
-        near = range(w.frame - ATTRIBUTION_WINDOW, w.frame + ATTRIBUTION_WINDOW + 1)
-        if any(f in match[o.id] and match[o.id][f].id == w.track for f in near):
+
+        def matched_in(frames: range) -> bool:
+            return any(f in match[o.id] and match[o.id][f].id == w.track for f in frames)
+
+        if matched_in(range(w.frame - ATTRIBUTION_WINDOW, w.frame + ATTRIBUTION_WINDOW + 1)):
             return True
         # the object's own track, warning while the object is hidden: the track matched it
         # within ATTRIBUTION_WINDOW frames before an occlusion (less than half visible) that
@@ -242,8 +245,7 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
             return False
         shown = np.flatnonzero((o.visible >= MIN_VISIBLE) & (o.frames < w.frame))
         hidden_from = int(o.frames[shown[-1]]) + 1 if len(shown) else int(o.frames[0])
-        near = range(hidden_from - ATTRIBUTION_WINDOW, hidden_from)
-        return any(f in match[o.id] and match[o.id][f].id == w.track for f in near)
+        return matched_in(range(hidden_from - ATTRIBUTION_WINDOW, hidden_from))
 
     if truth.collision:
         false_l2 = [w for w in l2_onsets if not any(on_object(w, o) for o in movers)]

@@ -93,6 +93,17 @@ def pedestrian_crossing_nearside(v: Vehicle) -> Plan:
     right, impact at 25 % of the width), but out from between two parked cars as in the paper's
     sequence: the nearer car hides the body below its roof line while the pedestrian crosses the
     parking lane (about 3.0 s to 1.2 s before impact)."""
+    return _between_parked_cars(v, stop_y=None)
+
+
+def pedestrian_stops_behind_parked_car(v: Vehicle) -> Plan:
+    """As pedestrian_crossing_nearside, but the pedestrian stops between the parked cars, hidden
+    below the nearer car's roof line, and waits while the car passes: what a track coasted
+    through the occlusion cannot know (it predicts the walk to go on)."""
+    return _between_parked_cars(v, stop_y=-3.6)
+
+
+def _between_parked_cars(v: Vehicle, stop_y: float | None) -> Plan:
     ego_speed, T = 35 * KMH, 8.0
     walk = crossing_course(
         ego_speed=ego_speed,
@@ -110,10 +121,18 @@ def pedestrian_crossing_nearside(v: Vehicle) -> Plan:
         parked=(ParkedCar(occluder, "right", 4.5, 1), ParkedCar(behind, "right", 4.5, 5)),
         clear_view=(ClearView(x_line - 45.0, occluder, "right"),),
     )
-    ped = MoverPlan(
-        "pedestrian", stand_then_cross(walk, -60.0), "adult, steps out between parked cars"
-    )
-    return Plan(EgoPlan(speed=((0.0, ego_speed),)), duration_s=8.0, street=street, movers=(ped,))
+    if stop_y is None:
+        ped = MoverPlan(
+            "pedestrian", stand_then_cross(walk, -60.0), "adult, steps out between parked cars"
+        )
+    else:
+        ped = MoverPlan("pedestrian", stand_then_cross(stop_at(walk, stop_y=stop_y), -60.0),
+                        "adult, stops hidden between parked cars")
+    if stop_y is None:
+        return Plan(EgoPlan(speed=((0.0, ego_speed),)), duration_s=8.0, street=street,
+                    movers=(ped,))
+    return Plan(EgoPlan(speed=((0.0, ego_speed),)), duration_s=8.0, end_s=T + 1.0, street=street,
+                movers=(ped,))
 
 
 def car_crossing_intersection(v: Vehicle) -> Plan:
@@ -323,6 +342,11 @@ SCENARIOS: dict[str, Scenario] = {
             pedestrian_stops_at_kerb,
             False,
             "no collision: pedestrian on a collision course stops at the kerb, 30 km/h",
+        ),
+        _scenario(
+            pedestrian_stops_behind_parked_car,
+            False,
+            "no collision: pedestrian stops hidden between parked cars, 35 km/h",
         ),
         _scenario(
             car_crosses_ahead,

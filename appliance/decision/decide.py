@@ -202,7 +202,7 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
     chist = tuple(h for h in chist if t - h[0] <= window)
     if c is not None and track.confirmed:
         left, right, bottom = sides
-        if not (left or right or bottom):
+        if not any(sides):
             u0, _, u1, _ = c.bbox
             contact = ground_contact(camera, (0.5 * (u0 + u1), c.foot_v - 0.5), pose, cfg.ground)
             if contact is not None:

@@ -4,9 +4,10 @@ The processing thread owns one :class:`SensorSync`; it feeds it the samples that
 the drivers (live) or the recording (replay) delivered, then asks for a
 :class:`~appliance.messages.SensorSample` at each frame's capture time. Between
 two samples the value is interpolated linearly; after the newest sample it is
-held (CAN) or continued along the last two samples' slope (the PTU's pan and tilt). A signal whose nearest sample is older than ``stale_s`` is invalid
-(``can_valid`` / ``ptu_valid`` False); with no PTU at all the PTU is at zero and
-valid, as the spec says for a recording without ``ptu.csv``.
+held (CAN) or continued along the last two samples' slope (the PTU's pan and tilt).
+A signal whose nearest sample is older than ``stale_s`` is invalid (``can_valid`` /
+``ptu_valid`` False); with no PTU at all the PTU is at zero and valid, as the spec
+says for a recording without ``ptu.csv``.
 """
 
 from __future__ import annotations

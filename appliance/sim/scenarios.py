@@ -121,17 +121,14 @@ def _between_parked_cars(v: Vehicle, stop_y: float | None) -> Plan:
         parked=(ParkedCar(occluder, "right", 4.5, 1), ParkedCar(behind, "right", 4.5, 5)),
         clear_view=(ClearView(x_line - 45.0, occluder, "right"),),
     )
-    if stop_y is None:
-        ped = MoverPlan(
-            "pedestrian", stand_then_cross(walk, -60.0), "adult, steps out between parked cars"
-        )
+    if stop_y is None:    # on to the collision, where the drive ends
+        course, end_s = walk, None
+        what = "adult, steps out between parked cars"
     else:
-        ped = MoverPlan("pedestrian", stand_then_cross(stop_at(walk, stop_y=stop_y), -60.0),
-                        "adult, stops hidden between parked cars")
-    if stop_y is None:
-        return Plan(EgoPlan(speed=((0.0, ego_speed),)), duration_s=8.0, street=street,
-                    movers=(ped,))
-    return Plan(EgoPlan(speed=((0.0, ego_speed),)), duration_s=8.0, end_s=T + 1.0, street=street,
+        course, end_s = stop_at(walk, stop_y=stop_y), T + 1.0
+        what = "adult, stops hidden between parked cars"
+    ped = MoverPlan("pedestrian", stand_then_cross(course, -60.0), what)
+    return Plan(EgoPlan(speed=((0.0, ego_speed),)), duration_s=8.0, end_s=end_s, street=street,
                 movers=(ped,))
 
 

@@ -43,6 +43,9 @@ __all__ = [
 ]
 
 
+ROAD_TURN_DEG = 8.0  # a road strip turns at most this much (texture axes within 4 deg of the road)
+
+
 def _ground_quad(
     corners: FloatArray,
     eu: FloatArray,
@@ -90,6 +93,7 @@ class StreetBuilder:
         self.roadside = Roadside(plan, line, bank, rng, keep_clear)
 
     def build(self, s_lo: float, s_hi: float) -> tuple[FaceSet, list[StaticObject]]:
+        self._road(s_lo, s_hi)
         self._sidewalks(s_lo, s_hi)
         self._markings(s_lo, s_hi)
         self.roadside.buildings(s_lo, s_hi)
@@ -147,6 +151,19 @@ class StreetBuilder:
         for x in self.plan.intersections:
             iv = subtract(iv, (x.s - half, x.s + half))
         return iv
+
+    def _road(self, s_lo: float, s_hi: float) -> None:
+        """The carriageway's asphalt in strips whose texture axes follow the road.
+
+        The ground plane under everything has world-fixed texture axes; a road seen at a
+        grazing angle diagonally to them (a bend) would get the rip-map level of the bounding
+        box of its pixel footprint along both axes, blurring the asphalt across the road into
+        streaks a real camera does not see. Strips run 1 m under each sidewalk, so a chunk's
+        chord never leaves a gap at a kerb."""
+        asphalt = self.bank["asphalt"]
+        for a, b in self._main_intervals(s_lo, s_hi, CROSS_HALF):
+            for s_a, s_b in self.line.chunks(a, b, max_turn=np.radians(ROAD_TURN_DEG)):
+                self._strip(s_a, s_b, KERB_RIGHT - 1.0, KERB_LEFT + 1.0, 0.0, asphalt, Layer.GROUND)
 
     def _sidewalks(self, s_lo: float, s_hi: float) -> None:
         pav = self.bank["paving"]

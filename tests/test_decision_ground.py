@@ -21,6 +21,7 @@ from appliance.decision.ground_state import (
     update_body_pitch,
 )
 from appliance.decision.scale_ttc import (
+    independent_windows,
     measure_expansion,
     scale_predict,
     scale_ttc,
@@ -205,6 +206,33 @@ def test_a_box_cut_by_the_border_has_its_scale_fitted_along_v_only() -> None:
     assert both.kappa > 0.05                       # TTC under a second at 30 frames/s
     assert along_v.kappa == pytest.approx(0.02, abs=2e-3)
     assert measure_expansion(pos, flow, np.ones(len(pos)), None, CAM, axes=()) is None
+
+
+def test_expansion_variance_counts_overlapping_lk_windows_once() -> None:
+    """Forty flows on a pedestrian-sized box (10 x 32 px) whose errors are shared by
+    each 9 px LK window: the kappa they give scatters as four measurements would, not
+    forty. With the window given the variance says so; without it, it is ~3x too small."""
+    rng = np.random.default_rng(7)
+    kappas, var_win, var_iid = [], [], []
+    for _ in range(300):
+        prev = np.column_stack([rng.uniform(400.0, 410.0, 40), rng.uniform(230.0, 262.0, 40)])
+        cur = 405.0 + 1.01 * (prev - 405.0)
+        cur[:, 1] = 246.0 + 1.01 * (prev[:, 1] - 246.0)
+        # one error per 9 px window (rows of the box), shared by the flows inside it
+        cell = ((prev[:, 1] - 230.0) // 9).astype(int)
+        cur = cur + rng.normal(0.0, 0.15, (cell.max() + 1, 2))[cell] + rng.normal(0.0, 0.02, cur.shape)
+        flow = cur - prev
+        m_win = measure_expansion(cur, flow, np.ones(40), None, CAM, window_px=9)
+        m_iid = measure_expansion(cur, flow, np.ones(40), None, CAM)
+        assert m_win is not None and m_iid is not None
+        kappas.append(m_win.kappa)
+        var_win.append(m_win.var)
+        var_iid.append(m_iid.var)
+    scatter = float(np.var(kappas))
+    assert np.median(var_win) == pytest.approx(scatter, rel=0.6)
+    assert np.median(var_iid) < scatter / 3.0
+    assert independent_windows(np.array([[0.0, 0.0], [100.0, 60.0]]), 9.0) == pytest.approx(100 * 60 / 81)
+    assert independent_windows(np.array([[5.0, 5.0], [8.0, 40.0]]), 9.0) == pytest.approx(35 / 9)
 
 
 def test_scale_filter_converges_to_ttc_of_a_constant_approach() -> None:

@@ -237,11 +237,11 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
         if cfg.ground.scale_from_outline and shape is not None \
                 and len(shape.positions) >= OUTLINE_MIN_POINTS:
             m = measure_expansion(shape.positions, shape.flows, np.ones(len(shape.positions)),
-                                  ego.rotation, camera, axes)
+                                  ego.rotation, camera, axes, cfg.flow.window_px)
         else:
             moving = c.weights >= cfg.clustering.member_weight
             m = measure_expansion(c.positions[moving], c.flows[moving], c.weights[moving],
-                                  ego.rotation, camera, axes)
+                                  ego.rotation, camera, axes, cfg.flow.window_px)
         if m is not None:
             s = scale_update(s, m, dt)
             # not before the scale cue itself is trusted (scale_ttc_min_frames): a new track's

@@ -43,7 +43,8 @@ class Expansion:
 
 def measure_expansion(positions: NDArray[np.floating], flows: NDArray[np.floating],
                       weights: NDArray[np.floating], rotation: NDArray[np.floating] | None,
-                      camera: PinholeCamera, axes: tuple[int, ...] = (0, 1)) -> Expansion | None:
+                      camera: PinholeCamera, axes: tuple[int, ...] = (0, 1),
+                      window_px: float = 0.0) -> Expansion | None:
     """Fit ``f_i - f_bar = kappa (x_prev_i - x_bar)`` to an object's correspondences.
 
     positions (N, 2): x_t px (distorted image pixels); flows (N, 2): x_t - x_{t-1};
@@ -52,6 +53,12 @@ def measure_expansion(positions: NDArray[np.floating], flows: NDArray[np.floatin
     by the left or right image border is fitted along v only, where the cut does not
     mix what enters the image with what stays. Up to two refits without outliers
     (3.5 robust sigma). None when fewer than 4 points or a spread below 2 px.
+
+    The variance treats the flows as independent measurements, but flows whose LK
+    windows (``window_px`` square, 0 = ignore) overlap share their errors: the number
+    of independent ones is at most the number of windows that tile the points' box
+    (:func:`independent_windows`). Forty particles on a pedestrian 10 x 32 px wide count
+    as four; on a car 100 x 60 px they stay forty.
     """
     ax = list(axes)
     if not ax:
@@ -83,9 +90,12 @@ def measure_expansion(positions: NDArray[np.floating], flows: NDArray[np.floatin
             return result
         kappa = float(np.sum(ww * np.sum(dx * df, axis=1)) / sxx)
         r2 = np.sum((df - kappa * dx) ** 2, axis=1)
-        # residual variance per component; fitted: one shift per axis and kappa
-        sigma2 = max(float(np.sum(ww * r2)) / d * d * n / max(d * n - d - 1, 1), 0.05 ** 2)
         n_eff = 1.0 / float(np.sum(ww * ww))
+        if window_px > 0.0:
+            n_eff = min(n_eff, independent_windows(prev_i[keep], window_px))
+        # residual variance per component; fitted: one shift per axis and kappa
+        sigma2 = max(float(np.sum(ww * r2)) / d * d * n_eff / max(d * n_eff - d - 1, 1.0),
+                     0.05 ** 2)
         result = Expansion(kappa=kappa, var=sigma2 / (sxx * n_eff), n=n)
         # robust scale of the residuals (median norm of a 2-D Gaussian is 1.177 sigma, of a
         # 1-D one 0.674 sigma)
@@ -95,6 +105,13 @@ def measure_expansion(positions: NDArray[np.floating], flows: NDArray[np.floatin
             break
         keep[np.flatnonzero(keep)[bad]] = False
     return result
+
+
+def independent_windows(points: NDArray[np.floating], window_px: float) -> float:
+    """How many ``window_px`` squares tile the box of ``points`` (N, 2) px, at least one
+    window along each axis."""
+    extent = np.ptp(np.asarray(points, dtype=np.float64).reshape(-1, 2), axis=0)
+    return float(np.prod(np.maximum(extent, window_px))) / window_px ** 2
 
 
 @dataclass(frozen=True)

@@ -138,7 +138,7 @@ class StreetBuilder:
                 L.point(s_a, d, 0.0),
             ]
         )
-        tan, left = L.frame(s_a)
+        _, left = L.frame(s_a)
         n = left if facing_left else -left
         ev = np.array([0.0, 0.0, -1.0])
         eu = np.cross(n, ev)

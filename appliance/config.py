@@ -249,6 +249,7 @@ class WarningConfig:
     moving_min_frames: int = _p(1, 1000)
     min_probability: float = _p(0.0, 1.0)
     coast_min_probability: float = _p(0.0, 1.0)
+    pool_covered_tracks: bool = _p()
     min_height_m: float = _p(0.0, 10.0)
     velocity_significance_sigmas: float = _p(0.0, 100.0)
     velocity_conditioning: bool = _p()

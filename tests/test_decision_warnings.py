@@ -155,3 +155,27 @@ def test_weak_or_static_tracks_raise_no_level(default_config: Config) -> None:
     # once raised, a warning is held for a track that stops (a pedestrian standing in the path)
     levels, events = run(cfg, [(threat(1, 1.0),)] * 4 + [(still,)] * 10)
     assert [e.level for e in events] == [2] and levels[-1] == 2
+
+
+def test_a_track_covering_another_passes_with_the_higher_probability(default_config: Config) -> None:
+    """A near pedestrian split into a feet track (ground contact, TTC 1 s, eq. 20 probability
+    0.5) and a head track above it (0.8, no contact): the feet track's outline covers the head
+    track's centre, so it passes min_probability as one object; a track beside it does not."""
+    from dataclasses import replace
+
+    from appliance.decision.decide import pool_covered
+
+    cfg = default_config.warning  # min_probability 0.75
+    feet = TrackThreat(replace(threat(1, 1.0).report, bbox=(300.0, 120.0, 340.0, 280.0),
+                               probability=0.5), True, True)
+    head = TrackThreat(replace(threat(2, None).report, bbox=(305.0, 120.0, 338.0, 150.0),
+                               probability=0.8), True, True)
+    beside = TrackThreat(replace(threat(3, None).report, bbox=(350.0, 120.0, 380.0, 150.0),
+                                 probability=0.9), True, True)
+    assert run(cfg, [(feet, head)] * 10)[1] == []   # alone, the feet track is too weak
+    pooled = pool_covered([feet, head])
+    assert pooled[0].evidence == 0.8 and pooled[1].evidence is None
+    assert pooled[0].report == feet.report          # tracks.jsonl keeps the track's own
+    _, events = run(cfg, [tuple(pooled)] * 10)
+    assert [(e.level, e.track) for e in events] == [(2, 1)]
+    assert pool_covered([feet, beside])[0].evidence is None

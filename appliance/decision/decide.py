@@ -168,6 +168,23 @@ def _bearing_pixel(track: ImageTrack, c: Cluster | None, sides: tuple[bool, bool
     return (float(track.position[0]), float(track.position[1])), "centre"
 
 
+def pool_covered(threats: list[TrackThreat]) -> list[TrackThreat]:
+    """Each seen track's ``evidence``: the highest eq. 20 probability among itself and the tracks
+    whose box centre its box covers (``warning.pool_covered_tracks``). A near pedestrian's
+    particles gather in separate regions, its feet (the ground contact, the TTC) and its head
+    and shoulders; the feet track's outline reaches up over the others: one object."""
+    out = []
+    for th in threats:
+        u0, v0, u1, v1 = th.report.bbox
+        p = th.report.probability
+        for other in threats:
+            a0, b0, a1, b1 = other.report.bbox
+            if other is not th and u0 <= 0.5 * (a0 + a1) <= u1 and v0 <= 0.5 * (b0 + b1) <= v1:
+                p = max(p, other.report.probability)
+        out.append(replace(th, evidence=p) if p > th.report.probability else th)
+    return out
+
+
 def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
                  ego: EgoMotion, sensors: SensorSample, pose: CameraPose, cfg: Config,
                  camera: PinholeCamera, lost: tuple[LostTrack, ...] = (),
@@ -460,6 +477,8 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
                 cues[tr.uid] = replace(cues[tr.uid], peak_height_m=th.height_m)
             threats.append(th)
     tracker = replace(tracker, tracks=tuple(tracks))
+    if cfg.warning.pool_covered_tracks:
+        threats = pool_covered(threats)
     if cfg.tracking.coast_warn_s > 0.0:
         seen: list[LostTrack] = []
         for lt in lost:

@@ -50,6 +50,8 @@ class TrackThreat:
     its depth is unknown (needed to raise a level); height_m: its box's height at its depth
     this frame (m), None when not seen or its depth is unknown. coasted: a hidden track
     assessed from its coasted 3-D state (``coast_min_probability`` instead of ``min_probability``).
+    evidence: the probability tested against ``min_probability`` when it is not the track's own
+    (``pool_covered_tracks``: the highest of the tracks its box covers), else None.
     """
 
     report: TrackReport
@@ -58,6 +60,7 @@ class TrackThreat:
     moving: bool = True
     upright: bool = True
     height_m: float | None = None
+    evidence: float | None = None
     coasted: bool = False
 
     @property
@@ -86,8 +89,8 @@ def _indicated(th: TrackThreat, threshold: float, wide: bool, hysteresis: float,
         return False
     if wide:
         return th.on_course_wide and ttc <= threshold + hysteresis
-    return th.moving and th.upright and th.on_course and ttc <= threshold and \
-        th.report.probability >= min_probability
+    p = th.report.probability if th.evidence is None else th.evidence
+    return th.moving and th.upright and th.on_course and ttc <= threshold and p >= min_probability
 
 
 def warning_step(state: WarningState, threats: tuple[TrackThreat, ...], t: float, frame: int,

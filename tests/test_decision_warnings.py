@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from appliance.config import Config, WarningConfig
-from appliance.decision.warnings import TrackThreat, WarningState, warning_step
+from appliance.decision.warnings import TrackThreat, WarningState, pool_covered, warning_step
 from appliance.messages import TrackReport, WarningEvent
 
 FPS = 30.0
@@ -163,8 +163,7 @@ def test_a_track_covering_another_passes_with_the_higher_probability(default_con
     track's centre, so it passes min_probability as one object; a track beside it does not."""
     from dataclasses import replace
 
-    from appliance.decision.decide import pool_covered
-
+    
     cfg = default_config.warning  # min_probability 0.75
     feet = TrackThreat(replace(threat(1, 1.0).report, bbox=(300.0, 120.0, 340.0, 280.0),
                                probability=0.5), True, True)

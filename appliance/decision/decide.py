@@ -77,7 +77,7 @@ from appliance.decision.threat import (
 )
 from appliance.decision.track_cues import TrackCues
 from appliance.decision.tracking import ImageModel, ImageTrack, TrackerState, track_step
-from appliance.decision.warnings import TrackThreat, WarningState, warning_step
+from appliance.decision.warnings import TrackThreat, WarningState, pool_covered, warning_step
 from appliance.messages import (
     EgoMotion,
     ParticleSet,
@@ -166,23 +166,6 @@ def _bearing_pixel(track: ImageTrack, c: Cluster | None, sides: tuple[bool, bool
             return ((u1, 0.5 * (v0 + v1)) if left else (u0, 0.5 * (v0 + v1))), \
                 ("left" if left else "right")
     return (float(track.position[0]), float(track.position[1])), "centre"
-
-
-def pool_covered(threats: list[TrackThreat]) -> list[TrackThreat]:
-    """Each seen track's ``evidence``: the highest eq. 20 probability among itself and the tracks
-    whose box centre its box covers (``warning.pool_covered_tracks``). A near pedestrian's
-    particles gather in separate regions, its feet (the ground contact, the TTC) and its head
-    and shoulders; the feet track's outline reaches up over the others: one object."""
-    out = []
-    for th in threats:
-        u0, v0, u1, v1 = th.report.bbox
-        p = th.report.probability
-        for other in threats:
-            a0, b0, a1, b1 = other.report.bbox
-            if other is not th and u0 <= 0.5 * (a0 + a1) <= u1 and v0 <= 0.5 * (b0 + b1) <= v1:
-                p = max(p, other.report.probability)
-        out.append(replace(th, evidence=p) if p > th.report.probability else th)
-    return out
 
 
 def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,

@@ -82,6 +82,23 @@ class WarningState:
     last_seen: float = float("-inf")
 
 
+def pool_covered(threats: list[TrackThreat]) -> list[TrackThreat]:
+    """Each seen track's ``evidence``: the highest eq. 20 probability among itself and the tracks
+    whose box centre its box covers (``warning.pool_covered_tracks``). A near pedestrian's
+    particles gather in separate regions, its feet (the ground contact, the TTC) and its head
+    and shoulders; the feet track's outline reaches up over the others: one object."""
+    out = []
+    for th in threats:
+        u0, v0, u1, v1 = th.report.bbox
+        p = th.report.probability
+        for other in threats:
+            a0, b0, a1, b1 = other.report.bbox
+            if other is not th and u0 <= 0.5 * (a0 + a1) <= u1 and v0 <= 0.5 * (b0 + b1) <= v1:
+                p = max(p, other.report.probability)
+        out.append(replace(th, evidence=p) if p > th.report.probability else th)
+    return out
+
+
 def _indicated(th: TrackThreat, threshold: float, wide: bool, hysteresis: float,
                min_probability: float = 0.0) -> bool:
     ttc = th.ttc

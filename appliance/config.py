@@ -150,6 +150,9 @@ class DetectionConfig:
     foot_probability: float = _p(0.0, 1.0)
     foot_gap_px: float = _p(0.0, 480.0)
     foot_max_height_m: float = _p(0.5, 5.0)
+    birth_fraction: float = _p(0.0, 1.0)
+    birth_likelihood: float = _p(0.0, 1.0)
+    birth_spread_px: float = _p(0.0, 100.0)
 
 
 @dataclass(frozen=True)
@@ -249,6 +252,7 @@ class WarningConfig:
     moving_min_frames: int = _p(1, 1000)
     min_probability: float = _p(0.0, 1.0)
     coast_min_probability: float = _p(0.0, 1.0)
+    coast_max_level: int = _p(0, 2)
     pool_covered_tracks: bool = _p()
     min_height_m: float = _p(0.0, 10.0)
     velocity_significance_sigmas: float = _p(0.0, 100.0)

@@ -178,3 +178,20 @@ def test_a_track_covering_another_passes_with_the_higher_probability(default_con
     _, events = run(cfg, [tuple(pooled)] * 10)
     assert [(e.level, e.track) for e in events] == [(2, 1)]
     assert pool_covered([feet, beside])[0].evidence is None
+
+
+def test_a_hidden_track_raises_at_most_coast_max_level(default_config: Config) -> None:
+    """``coast_max_level`` 1: a coasted track only cautions; a level 2 issued while the track was
+    seen is still held when it hides behind something."""
+    from dataclasses import replace
+
+    seen = threat(1, 1.0)
+    hidden = TrackThreat(replace(seen.report, probability=0.6), True, True, coasted=True)
+    assert [e.level for e in run(default_config.warning, [(hidden,)] * 10)[1]] == [2]
+    cfg = default_config.with_overrides({"warning": {"coast_max_level": 1}}).warning
+    levels, events = run(cfg, [(hidden,)] * 10)
+    assert [e.level for e in events] == [1] and levels[-1] == 1
+    levels, events = run(cfg, [(seen,)] * 4 + [(hidden,)] * 10)
+    assert [e.level for e in events] == [2] and levels[-1] == 2
+    cfg0 = default_config.with_overrides({"warning": {"coast_max_level": 0}}).warning
+    assert run(cfg0, [(hidden,)] * 10)[1] == []

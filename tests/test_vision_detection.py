@@ -12,8 +12,11 @@ from filterpy.monte_carlo import systematic_resample as filterpy_systematic
 from appliance.config import Config, DetectionConfig
 from appliance.vision import geometry as g
 from appliance.vision.detection import (
+    BIRTHS_PER_POINT,
     ImportanceDensity,
+    birth_positions,
     next_particles,
+    resample_particles,
     road_importance,
     systematic_resample,
 )
@@ -335,3 +338,32 @@ def test_flows_measured_along_an_edge_do_not_flag_motion(default_config: Config)
     # no covariance: every flow gets sigma_p, as in the paper
     paper = motion_cues(short, uv, forward_motion(), ROAD, cfg, None)
     assert paper.magnitude is not None and paper.magnitude[0] > 0.8
+
+
+def test_births_gather_next_to_static_correspondences_that_look_independent(
+        default_config: Config) -> None:
+    """Static-pool corners with a high likelihood seed births (correction 1, no parent) next to
+    them, at most BIRTHS_PER_POINT each, in proportion to the likelihood; none seed without."""
+    cfg = default_config.detection
+    rng = np.random.default_rng(3)
+    corners = np.array([[100.0, 100.0], [400.0, 250.0], [600.0, 50.0]])
+    lik = np.array([0.1, 0.9, 0.6])
+    b = birth_positions(corners, lik, 50, cfg.birth_likelihood, 3.0, 640, 480, rng)
+    assert len(b) == 2 * BIRTHS_PER_POINT                       # two corners above 0.5
+    near = np.linalg.norm(b[:, None, :] - corners[None, :, :], axis=2).argmin(axis=1)
+    assert set(near.tolist()) <= {1, 2}
+    assert np.all(np.linalg.norm(b - corners[near], axis=1) < 15.0)
+    assert len(birth_positions(corners, lik * 0.5, 50, cfg.birth_likelihood, 3.0, 640, 480, rng)) == 0
+    many = birth_positions(corners, lik, 4000, 0.5, 3.0, 640, 480, rng)  # cap lifted by n
+    assert len(many) == 2 * BIRTHS_PER_POINT
+    edge = birth_positions(np.array([[0.0, 479.0]]), np.ones(1), 4, 0.5, 30.0, 640, 480, rng)
+    assert np.all((edge >= 0.0) & (edge <= [639.0, 479.0]))
+
+    n = cfg.particles
+    x = rng.uniform([0, 0], [640, 480], (n, 2))
+    out, corr, parent, _ = resample_particles(x, np.full(n, 0.1), np.ones(n, bool), np.ones(n),
+                                              ImportanceDensity(640, 480), cfg, rng, b)
+    n_imp = round(cfg.importance_fraction * n)
+    born = out[n - n_imp:n - n_imp + len(b)]
+    np.testing.assert_array_equal(born, b)
+    assert np.all(parent[n - n_imp:] == -1) and np.all(corr[n - n_imp:n - n_imp + len(b)] == 1.0)

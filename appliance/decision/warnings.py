@@ -129,6 +129,9 @@ def warning_step(state: WarningState, threats: tuple[TrackThreat, ...], t: float
         p_min = cfg.coast_min_probability if th.coasted else cfg.min_probability
         s1 = old[0] + 1 if _indicated(th, thresholds[1] + lookahead, False, 0.0, p_min) else 0
         s2 = old[1] + 1 if _indicated(th, thresholds[2] + lookahead, False, 0.0, p_min) else 0
+        if th.coasted:   # a hidden track raises at most coast_max_level (an issued level is held)
+            s1 = s1 if cfg.coast_max_level >= 1 else 0
+            s2 = s2 if cfg.coast_max_level >= 2 else 0
         streaks[tid] = (s1, s2)
         level = 0
         for k, streak in ((2, s2), (1, s1)):

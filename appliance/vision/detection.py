@@ -15,6 +15,15 @@ uniform density u over the image (the filter's "object appears anywhere" prior):
 ``w = p(y|theta) u / g(theta)``. For ``importance = "uniform"`` the correction is 1;
 for ``"road"`` (g biased to the band around and below the horizon where road users
 appear) samples inside the band are weighted down and those outside up.
+
+*Births* (beyond the paper, ``birth_fraction``): the static-scene pool of section 3
+measures flow at ~300 corners every frame. Weighed with the same likelihood, those
+correspondences are measurements of independent motion too, and a corner on a small
+far mover is found far sooner than g's uniform samples find it (a 6 x 23 px pedestrian
+gets one of 100 uniform samples every ~20 frames). Some of the importance samples are
+therefore born next to the corners whose likelihood is high. They are draws from the
+"object appears anywhere" prior already updated by those measurements, so their eq. 4
+correction is 1: re-weighting them by ``u / g`` would undo exactly that update.
 """
 
 from __future__ import annotations
@@ -79,6 +88,31 @@ def road_importance(width: int, height: int, horizon_row: float | None) -> Impor
     return ImportanceDensity(width, height, band_top=horizon_row - ROAD_BAND_ABOVE * height)
 
 
+BIRTHS_PER_POINT = 4   # births at most per seeding correspondence: one noisy corner seeds a few, not all
+
+
+def birth_positions(points: NDArray[np.floating], likelihood: NDArray[np.floating], n: int,
+                    threshold: float, spread_px: float, width: int, height: int,
+                    rng: np.random.Generator) -> FloatArray:
+    """Up to n birth positions (M, 2) px next to the correspondences ``points`` (S, 2)
+    whose likelihood (S,) is at least ``threshold``: each picks one of them with
+    probability proportional to its likelihood and adds a Gaussian offset of
+    ``spread_px``. At most :data:`BIRTHS_PER_POINT` per such correspondence; none
+    without any. Positions stay inside the image."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    lik = np.asarray(likelihood, dtype=np.float64).reshape(-1)
+    hot = np.isfinite(lik) & (lik >= threshold) & np.all(np.isfinite(pts), axis=1)
+    m = min(n, BIRTHS_PER_POINT * int(hot.sum()))
+    if m <= 0:
+        return np.empty((0, 2))
+    seeds, w = pts[hot], lik[hot]
+    idx = rng.choice(len(seeds), size=m, p=w / w.sum())
+    out: FloatArray = seeds[idx] + rng.normal(0.0, spread_px, (m, 2))
+    out[:, 0] = np.clip(out[:, 0], 0.0, width - 1.0)
+    out[:, 1] = np.clip(out[:, 1], 0.0, height - 1.0)
+    return out
+
+
 def systematic_resample(weights: NDArray[np.floating], n: int, offset: float) -> NDArray[np.int64]:
     """n indices by systematic resampling of normalised ``weights`` with one offset in [0, 1).
 
@@ -114,7 +148,8 @@ def next_particles(x_cur: NDArray[np.floating], likelihood: NDArray[np.floating]
 
 def resample_particles(x_cur: NDArray[np.floating], likelihood: NDArray[np.floating],
                        valid: NDArray[np.bool_], correction: NDArray[np.floating],
-                       g: ImportanceDensity, cfg: DetectionConfig, rng: np.random.Generator
+                       g: ImportanceDensity, cfg: DetectionConfig, rng: np.random.Generator,
+                       births: NDArray[np.floating] | None = None
                        ) -> tuple[FloatArray, FloatArray, NDArray[np.int64], FloatArray]:
     """Fig. 4: resample, diffuse, add importance samples.
 
@@ -124,6 +159,8 @@ def resample_particles(x_cur: NDArray[np.floating], likelihood: NDArray[np.float
     the next frame, their eq. 4 corrections (1 for resampled particles), the index
     of each one's parent in x_cur (-1 for a sample of g) and its diffusion offset (px).
     With no valid particle (black frame, all tracks lost) every particle comes from g.
+    ``births`` (M, 2) (:func:`birth_positions`) take the first M importance slots, with
+    correction 1 and parent -1.
     """
     n = cfg.particles
     n_imp = round(cfg.importance_fraction * n)
@@ -147,8 +184,14 @@ def resample_particles(x_cur: NDArray[np.floating], likelihood: NDArray[np.float
     outside[:n_res] = ((out[:n_res, 0] < 0.0) | (out[:n_res, 0] > g.width - 1.0)
                        | (out[:n_res, 1] < 0.0) | (out[:n_res, 1] > g.height - 1.0))
     outside[n_res:] = True
+    born = np.zeros(n, dtype=bool)
+    if births is not None and len(births) and n_imp > 0:
+        b = np.asarray(births, dtype=np.float64).reshape(-1, 2)[:n_imp]
+        out[n_res:n_res + len(b)] = b
+        born[n_res:n_res + len(b)] = True
+        outside &= ~born
     fresh = g.sample(rng, int(outside.sum()))
     out[outside] = fresh
     corr[outside] = g.correction(fresh)
-    parent[outside] = -1
+    parent[outside | born] = -1
     return out, corr, parent, offset

@@ -20,7 +20,12 @@ from appliance.config import Config
 from appliance.errors import UsageError
 from appliance.messages import EgoMotion, Frame, ParticleSet, ProbabilityMap, SensorSample
 from appliance.vision.baseline import advance_history, inherit_history, lineage_weight
-from appliance.vision.detection import ImportanceDensity, resample_particles, road_importance
+from appliance.vision.detection import (
+    ImportanceDensity,
+    birth_positions,
+    resample_particles,
+    road_importance,
+)
 from appliance.vision.epipolar import translation_from_theta
 from appliance.vision.flow import corner_candidates, lk_covariance, track
 from appliance.vision.geometry import (
@@ -233,26 +238,33 @@ def perceive(state: VisionState, frame: Frame, sensors: SensorSample,
     # detection (section 2)
     valid = tracks.valid[:n]
     motion = CameraMotion(R=R, t_dir=t_dir, t_m=t_m, standstill=prior.standstill, K=camera.K)
-    cov = lk_covariance(state.prev_image, state.particles, tracks.residual[:n], cfg.flow.window_px,
-                        cfg.detection.lk_noise_gain, cfg.detection.image_noise_gray,
-                        tracks.fb_error[:n], cfg.detection.fb_noise_gain)
-    foot = None
+    # the likelihood at both pools: the particles' weighs them, the static pool's seeds births
+    cov_all = lk_covariance(state.prev_image, start, tracks.residual, cfg.flow.window_px,
+                            cfg.detection.lk_noise_gain, cfg.detection.image_noise_gray,
+                            tracks.fb_error, cfg.detection.fb_noise_gain)
+    foot_all = None
     if prob_map is not None and cfg.detection.foot_probability > 0.0:
-        feet = foot_points(prob_map.p, prob_map.scale, tracks.end[:n],
+        feet = foot_points(prob_map.p, prob_map.scale, tracks.end,
                            cfg.detection.foot_probability, camera.height,
                            cfg.detection.foot_gap_px)
-        foot = camera.undistort(np.nan_to_num(feet, nan=0.0))
-        foot[np.isnan(feet[:, 0])] = np.nan
-    cues = motion_cues(ideal_start[:n], ideal_end[:n], motion, road, cfg.detection, cov, foot)
-    likelihood = np.where(valid, np.clip(combine(cues, cfg.detection.likelihood), 0.0, 1.0), 0.0)
+        foot_all = camera.undistort(np.nan_to_num(feet, nan=0.0))
+        foot_all[np.isnan(feet[:, 0])] = np.nan
+    cues = motion_cues(ideal_start, ideal_end, motion, road, cfg.detection, cov_all, foot_all)
+    lik_all = np.where(tracks.valid, np.clip(combine(cues, cfg.detection.likelihood), 0.0, 1.0), 0.0)
+    likelihood = lik_all[:n]
+    cov = None if cov_all is None else cov_all[:n]
+    foot = None if foot_all is None else foot_all[:n]
     end = tracks.end[:n]
     likelihood = _span_likelihood(state, image, end, valid, cov, likelihood, motion, road, foot,
                                   cfg, camera)
     history = _no_history(n, cfg) if prior.standstill else state.history
     weights = lineage_weight(likelihood, history)
     g = _importance(cfg, camera, road)
+    births = birth_positions(tracks.end[n:], lik_all[n:], round(cfg.detection.birth_fraction * n),
+                             cfg.detection.birth_likelihood, cfg.detection.birth_spread_px,
+                             camera.width, camera.height, rng)
     particles, correction, parent, _ = resample_particles(end, weights, valid, state.correction,
-                                                          g, cfg.detection, rng)
+                                                          g, cfg.detection, rng, births)
     history = inherit_history(advance_history(history, likelihood, valid), parent)
 
     prior_dir = _unit(prior.t_m)

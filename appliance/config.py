@@ -153,6 +153,8 @@ class DetectionConfig:
     birth_fraction: float = _p(0.0, 1.0)
     birth_likelihood: float = _p(0.0, 1.0)
     birth_spread_px: float = _p(0.0, 100.0)
+    isolation_spacing_px: float = _p(0.0, 100.0)
+    isolation_min_valid: int = _p(1, 4)
 
 
 @dataclass(frozen=True)

@@ -412,10 +412,10 @@ def main(argv: list[str]) -> int:
                 one = [longest_false_run(lg, w, h) for lg in seeds]
                 three = [longest_false_run(lg, w, h, 3) for lg in seeds]
                 each = ", ".join(f"{a}/{b}" for a, b in zip(one, three))
-                rows.append((case.name, f"static {mode}: longest run, >=1 / >=3 w>0.5",
-                             f"max {max(one)} / {max(three)} frames, median {np.median(one):g} / "
-                             f"{np.median(three):g} over seeds {args.seed}-{args.seed + len(seeds) - 1}"
-                             f" ({each}; {per_frame:.1f} w>0.5 per frame)"))
+                value = (f"max {max(one)} / {max(three)} frames, median {np.median(one):g} / "
+                         f"{np.median(three):g} over seeds {args.seed}-{args.seed + len(seeds) - 1}"
+                         f" ({each}; {per_frame:.1f} w>0.5 per frame)")
+                rows.append((case.name, f"static {mode}: longest run, >=1 / >=3 w>0.5", value))
     print(f"{'recording':34s} {'quantity':44s} value")
     for name, what, value in rows:
         print(f"{name:34s} {what:44s} {value}")

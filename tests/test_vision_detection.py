@@ -367,3 +367,22 @@ def test_births_gather_next_to_static_correspondences_that_look_independent(
     born = out[n - n_imp:n - n_imp + len(b)]
     np.testing.assert_array_equal(born, b)
     assert np.all(parent[n - n_imp:] == -1) and np.all(corr[n - n_imp:n - n_imp + len(b)] == 1.0)
+
+
+def test_isolated_evidence_is_capped_at_its_neighbours_likelihood() -> None:
+    """A particle whose valid neighbours all look static is capped at their highest
+    likelihood; one neighbour that moves with it (an object larger than the spacing) or
+    too few valid neighbours leave it alone."""
+    from appliance.vision.boundary import isolated_likelihood, neighbour_points
+
+    lik = np.array([0.9, 0.9, 0.9, 0.9])
+    nb = np.array([[0.1, 0.2, 0.05, 0.3],     # all static: isolated, capped at 0.3
+                   [0.1, 0.2, 0.8, 0.3],      # one neighbour moves with it: an object
+                   [0.1, 0.2, 0.9, 0.3],      # that one invalid: isolated again
+                   [0.1, 0.9, 0.9, 0.9]])     # a single valid neighbour: no test
+    valid = np.array([[True] * 4, [True] * 4, [True, True, False, True],
+                      [True, False, False, False]])
+    out = isolated_likelihood(lik, nb, valid, 0.5, 2)
+    np.testing.assert_allclose(out, [0.3, 0.9, 0.3, 0.9])
+    pts = neighbour_points(np.array([[100.0, 50.0]]), 9.0)
+    np.testing.assert_allclose(pts[0], [[91, 50], [109, 50], [100, 41], [100, 59]])

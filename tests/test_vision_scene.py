@@ -247,3 +247,20 @@ def test_a_guess_lets_lk_follow_a_fast_pan_and_changes_nothing_at_the_point_itse
     at_point = track(img0, img1, pts, check, cfg, guess=pts)
     np.testing.assert_array_equal(at_point.valid, plain.valid)
     np.testing.assert_array_equal(at_point.fb_error, plain.fb_error)
+
+
+def test_a_window_reaching_over_the_image_border_gives_no_flow() -> None:
+    """Texture shifted 3 px left, as the road flows out of the image: points whose LK window
+    (9 px) would reach over the border, at the start or at the end, are not valid, while the
+    same shift is tracked right a window's half further in."""
+    cfg: FlowConfig = load_config().flow
+    img0 = np.clip(cv2.resize(noise_texture(7), (640, 480)), 0, 255).astype(np.uint8)
+    img1 = np.asarray(cv2.warpAffine(img0, np.array([[1, 0, -3], [0, 1, 0]], dtype=np.float32),
+                                     (640, 480), borderMode=cv2.BORDER_REFLECT), dtype=np.uint8)
+    u = np.array([1.0, 3.0, 6.0, 8.0, 9.0, 20.0, 636.0])
+    pts = np.column_stack([u, np.full(len(u), 240.0)])
+    tr = track(img0, img1, pts, np.ones(len(pts), bool), cfg)
+    half = cfg.window_px // 2
+    inside = (u >= half) & (u - 3.0 >= half) & (u <= 639 - half)
+    np.testing.assert_array_equal(tr.valid, inside)
+    np.testing.assert_allclose(tr.end[tr.valid, 0], u[inside] - 3.0, atol=0.1)

@@ -204,12 +204,13 @@ class PinholeCamera:
         )
 
 
-def in_image(uv: NDArray[np.floating], width: int, height: int) -> NDArray[np.bool_]:
+def in_image(uv: NDArray[np.floating], width: int, height: int, margin: float = 0.0
+             ) -> NDArray[np.bool_]:
     """(N,) True where the pixels ``uv`` (N, 2) lie in a ``width`` x ``height`` image, pixel
-    centres ``0 <= u <= width - 1``, ``0 <= v <= height - 1`` (NaN: False)."""
+    centres ``margin <= u <= width - 1 - margin``, likewise v (NaN: False)."""
     uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
-    return np.asarray((uv[:, 0] >= 0.0) & (uv[:, 0] <= width - 1.0)
-                      & (uv[:, 1] >= 0.0) & (uv[:, 1] <= height - 1.0))
+    return np.asarray((uv[:, 0] >= margin) & (uv[:, 0] <= width - 1.0 - margin)
+                      & (uv[:, 1] >= margin) & (uv[:, 1] <= height - 1.0 - margin))
 
 
 def rotational_flow(

@@ -20,6 +20,7 @@ from appliance.config import Config
 from appliance.errors import UsageError
 from appliance.messages import EgoMotion, Frame, ParticleSet, ProbabilityMap, SensorSample
 from appliance.vision.baseline import advance_history, inherit_history, lineage_weight
+from appliance.vision.boundary import isolated_likelihood, neighbour_points
 from appliance.vision.detection import (
     ImportanceDensity,
     birth_positions,
@@ -50,6 +51,7 @@ from appliance.vision.prior import PriorMotion, prior_motion
 from appliance.vision.refinement import MapProblem, refine_motion
 from appliance.vision.span import span_motion
 
+ISOLATION_STATIC_BELOW = 0.5  # a likelihood below this looks static (isolation check: candidates, neighbours)
 ATTITUDE_LEAK = 0.9   # per frame: the body pitch/roll estimate decays towards the mount's
 
 
@@ -251,6 +253,9 @@ def perceive(state: VisionState, frame: Frame, sensors: SensorSample,
         foot_all[np.isnan(feet[:, 0])] = np.nan
     cues = motion_cues(ideal_start, ideal_end, motion, road, cfg.detection, cov_all, foot_all)
     lik_all = np.where(tracks.valid, np.clip(combine(cues, cfg.detection.likelihood), 0.0, 1.0), 0.0)
+    if cfg.detection.isolation_spacing_px > 0.0 and not prior.standstill:
+        lik_all = _isolation_check(state.prev_image, image, start, lik_all, tracks.valid, prior.R,
+                                   motion, road, cfg, camera)
     likelihood = lik_all[:n]
     cov = None if cov_all is None else cov_all[:n]
     foot = None if foot_all is None else foot_all[:n]
@@ -281,6 +286,28 @@ def perceive(state: VisionState, frame: Frame, sensors: SensorSample,
                       earlier_images=((state.prev_image,) + state.earlier_images)[:kept],
                       earlier_motions=((motion,) + state.earlier_motions)[:kept])
     return new, ego, out
+
+
+def _isolation_check(prev: NDArray[np.uint8], image: NDArray[np.uint8], start: FloatArray,
+                     likelihood: FloatArray, valid: NDArray[np.bool_], prior_R: FloatArray,
+                     motion: CameraMotion, road: RoadPlane, cfg: Config, camera: PinholeCamera
+                     ) -> FloatArray:
+    """The likelihood with isolated evidence capped (boundary.py): flow measured
+    ``isolation_spacing_px`` to either side of every point that looks independent."""
+    det = cfg.detection
+    cand = np.flatnonzero(valid & (likelihood >= ISOLATION_STATIC_BELOW))
+    if cand.size == 0:
+        return likelihood
+    pts = neighbour_points(start[cand], det.isolation_spacing_px).reshape(-1, 2)
+    guess = lk_start(camera, pts, prior_R) if cfg.flow.rotation_guess else None
+    nb = track(prev, image, pts, np.ones(len(pts), dtype=bool), cfg.flow, guess=guess)
+    cues = motion_cues(camera.undistort(pts), camera.undistort(nb.end), motion, road, det)
+    nb_lik = np.clip(combine(cues, det.likelihood), 0.0, 1.0)
+    out = likelihood.copy()
+    out[cand] = isolated_likelihood(likelihood[cand], nb_lik.reshape(-1, 4),
+                                    nb.valid.reshape(-1, 4), ISOLATION_STATIC_BELOW,
+                                    det.isolation_min_valid)
+    return out
 
 
 def _span_likelihood(state: VisionState, image: NDArray[np.uint8], end: FloatArray,

@@ -1,0 +1,49 @@
+"""Isolated evidence: independent motion is a region, not a point (beyond the paper).
+
+Where a near static surface ends in front of a farther one (a parked car's roof against a
+facade, a building's corner against the next one), the Lucas-Kanade window holds both, and
+at a T-junction the window's answer is the motion of neither: the junction slides along the
+nearer edge, and the likelihood of eqs. 5-6 reads it as independent motion, frame after
+frame, in the same place. Such a point is alone: a window's width to its left, right, above
+and below, the flow is static again.
+
+The test: measure flow at those four neighbours. A particle none of whose valid neighbours
+looks independent (at least ``min_valid`` of them valid) is isolated, and its likelihood is
+capped at its neighbours' highest. Road users are larger than that: a pedestrian 6 px wide
+and 23 px tall has its upper and lower neighbours on its own body, a cyclist or car its
+neighbours on itself in most directions. What it costs is a moving object smaller than about
+two windows in both directions (a pedestrian under ~15 px tall, beyond ~60 m).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from appliance.vision.geometry import FloatArray
+
+# neighbour offsets in units of the spacing: left, right, above, below
+NEIGHBOUR_OFFSETS: FloatArray = np.array([[-1.0, 0.0], [1.0, 0.0], [0.0, -1.0], [0.0, 1.0]])
+
+
+def neighbour_points(points: NDArray[np.floating], spacing_px: float) -> FloatArray:
+    """(N, 4, 2) points ``spacing_px`` to the left, right, above and below each point (N, 2)."""
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 1, 2)
+    out: FloatArray = p + spacing_px * NEIGHBOUR_OFFSETS[None, :, :]
+    return out
+
+
+def isolated_likelihood(likelihood: NDArray[np.floating], nb_likelihood: NDArray[np.floating],
+                        nb_valid: NDArray[np.bool_], static_below: float, min_valid: int
+                        ) -> FloatArray:
+    """Each likelihood (N,) capped at its neighbours' highest where it is isolated: at least
+    ``min_valid`` of its neighbours (``nb_likelihood``, ``nb_valid``: (N, 4)) have a valid
+    flow, and none of those has a likelihood of ``static_below`` or more."""
+    lik = np.asarray(likelihood, dtype=np.float64)
+    nl = np.asarray(nb_likelihood, dtype=np.float64).reshape(-1, 4)
+    nv = np.asarray(nb_valid, dtype=bool).reshape(-1, 4)
+    seen = np.where(nv, nl, -np.inf)
+    top = seen.max(axis=1)
+    isolated = (nv.sum(axis=1) >= min_valid) & (top < static_below)
+    out: FloatArray = np.where(isolated, np.minimum(lik, np.maximum(top, 0.0)), lik)
+    return out

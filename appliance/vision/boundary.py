@@ -9,10 +9,12 @@ and below, the flow is static again.
 
 The test: measure flow at those four neighbours. A particle none of whose valid neighbours
 looks independent (at least ``min_valid`` of them valid) is isolated, and its likelihood is
-capped at its neighbours' highest. Road users are larger than that: a pedestrian 6 px wide
-and 23 px tall has its upper and lower neighbours on its own body, a cyclist or car its
-neighbours on itself in most directions. What it costs is a moving object smaller than about
-two windows in both directions (a pedestrian under ~15 px tall, beyond ~60 m).
+capped at its neighbours' highest. The hope is that road users are larger than that (a
+pedestrian 6 px wide and 23 px tall has its upper and lower neighbours on its own body).
+Measured, they are often not: with 9 px the simulator's cyclist (a thin 20 x 19 px outline)
+and with 12 px pedestrians 23-26 px tall at ~50 m were found later, because the neighbours on
+their thin parts look static; the README has the figures. Off by default. The neighbours'
+flow-length cue has no foot points (above the horizon only their direction test speaks).
 """
 
 from __future__ import annotations

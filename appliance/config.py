@@ -155,6 +155,9 @@ class DetectionConfig:
     birth_spread_px: float = _p(0.0, 100.0)
     isolation_spacing_px: float = _p(0.0, 100.0)
     isolation_min_valid: int = _p(1, 4)
+    stability_offset_px: float = _p(0.0, 100.0)
+    stability_gain: float = _p(0.0, 100.0)
+    stability_floor_px: float = _p(0.0, 100.0)
 
 
 @dataclass(frozen=True)

@@ -105,6 +105,18 @@ def test_particles_gather_on_a_crossing_object_with_lineage_and_fb_noise(default
     assert on_box(particles, box)[high].mean() > 0.9
 
 
+@pytest.mark.parametrize("switch", [{"stability_offset_px": 3.0}, {"isolation_spacing_px": 9.0}])
+def test_the_occlusion_edge_switches_keep_a_crossing_object(default_config: Config,
+                                                            switch: dict[str, float]) -> None:
+    """Both tests against occlusion-edge evidence (boundary.py) leave a crossing object that
+    is larger than their spacing: its flow is its own a few px to every side."""
+    run = drive(default_config.with_overrides({"detection": switch}), 9, Scene(boxes=(CROSSING,)))
+    _, _, particles, box = run[-1]
+    high = particles.weights > 0.5
+    assert high.sum() >= 5
+    assert on_box(particles, box)[high].mean() > 0.9
+
+
 def test_standstill_gives_no_detections(default_config: Config) -> None:
     for _, ego, particles, _ in drive(default_config, 4, Scene(), speed=0.0):
         assert ego.standstill

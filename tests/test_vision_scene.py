@@ -9,6 +9,7 @@ textured vertical rectangles facing the camera that move at constant velocity.
 from __future__ import annotations
 
 import functools
+import dataclasses
 from dataclasses import dataclass, field
 
 import cv2
@@ -264,3 +265,36 @@ def test_a_window_reaching_over_the_image_border_gives_no_flow() -> None:
     inside = (u >= half) & (u - 3.0 >= half) & (u <= 639 - half)
     np.testing.assert_array_equal(tr.valid, inside)
     np.testing.assert_allclose(tr.end[tr.valid, 0], u[inside] - 3.0, atol=0.1)
+
+
+def test_a_junctions_flow_moves_with_the_window_a_rigid_patchs_does_not() -> None:
+    """boundary.flow_spread on images: a near textured corner (a parked van's roof corner) moves
+    3 px right over a far texture moving 1 px right and 1 px down. At the corner the flow measured
+    with the window moved by 3 px changes by far more than inside the near surface or on the far
+    one."""
+    from appliance.vision.boundary import flow_spread, neighbour_points
+
+    cfg = dataclasses.replace(load_config().flow, pyramid_levels=0)
+    far = np.clip(cv2.resize(noise_texture(3), (640, 480)), 0, 255)
+    near = np.clip(cv2.resize(noise_texture(9), (640, 480)), 0, 255)
+
+    def frame(dx_near: float, dx_far: float, dy_far: float) -> NDArray[np.uint8]:
+        m_far = np.array([[1, 0, dx_far], [0, 1, dy_far]], dtype=np.float32)
+        m_near = np.array([[1, 0, dx_near], [0, 1, 0]], dtype=np.float32)
+        img = cv2.warpAffine(far, m_far, (640, 480), borderMode=cv2.BORDER_REFLECT)
+        shifted = cv2.warpAffine(near, m_near, (640, 480), borderMode=cv2.BORDER_REFLECT)
+        mask = np.zeros((480, 640), bool)
+        mask[240:, :int(320 + dx_near)] = True     # the near surface: corner at (320, 240)
+        img[mask] = shifted[mask]
+        return np.asarray(img, dtype=np.uint8)
+
+    img0, img1 = frame(0.0, 0.0, 0.0), frame(3.0, 1.0, 1.0)
+    pts = np.array([[320.0, 240.0], [250.0, 330.0], [420.0, 120.0]])   # corner, near, far
+    own = track(img0, img1, pts, np.zeros(3, bool), load_config().flow)
+    assert own.valid.all()
+    nb = neighbour_points(pts, 3.0).reshape(-1, 2)
+    flow = own.end - pts
+    tr = track(img0, img1, nb, np.zeros(len(nb), bool), cfg, guess=nb + np.repeat(flow, 4, axis=0))
+    spread = flow_spread(flow, (tr.end - nb).reshape(-1, 4, 2), tr.valid.reshape(-1, 4))
+    assert spread[0] > 0.6, spread
+    assert spread[1] < 0.2 and spread[2] < 0.2, spread

@@ -20,7 +20,7 @@ from appliance.config import Config
 from appliance.errors import UsageError
 from appliance.messages import EgoMotion, Frame, ParticleSet, ProbabilityMap, SensorSample
 from appliance.vision.baseline import advance_history, inherit_history, lineage_weight
-from appliance.vision.boundary import isolated_likelihood, neighbour_points
+from appliance.vision.boundary import flow_spread, isolated_likelihood, neighbour_points
 from appliance.vision.detection import (
     ImportanceDensity,
     birth_positions,
@@ -256,6 +256,10 @@ def perceive(state: VisionState, frame: Frame, sensors: SensorSample,
     if cfg.detection.isolation_spacing_px > 0.0 and not prior.standstill:
         lik_all = _isolation_check(state.prev_image, image, start, lik_all, tracks.valid, prior.R,
                                    motion, road, cfg, camera)
+    if cfg.detection.stability_offset_px > 0.0 and not prior.standstill:
+        lik_all = _stability_check(state.prev_image, image, start, tracks.end, ideal_start,
+                                   ideal_end, lik_all, tracks.valid, cov_all, foot_all, prior.R,
+                                   motion, road, cfg, camera)
     likelihood = lik_all[:n]
     cov = None if cov_all is None else cov_all[:n]
     foot = None if foot_all is None else foot_all[:n]
@@ -307,6 +311,35 @@ def _isolation_check(prev: NDArray[np.uint8], image: NDArray[np.uint8], start: F
     out[cand] = isolated_likelihood(likelihood[cand], nb_lik.reshape(-1, 4),
                                     nb.valid.reshape(-1, 4), ISOLATION_STATIC_BELOW,
                                     det.isolation_min_valid)
+    return out
+
+
+def _stability_check(prev: NDArray[np.uint8], image: NDArray[np.uint8], start: FloatArray,
+                     end: FloatArray, ideal_start: FloatArray, ideal_end: FloatArray,
+                     likelihood: FloatArray, valid: NDArray[np.bool_], cov: FloatArray | None,
+                     foot: FloatArray | None, prior_R: FloatArray, motion: CameraMotion,
+                     road: RoadPlane, cfg: Config, camera: PinholeCamera) -> FloatArray:
+    """The likelihood of every point that looks independent again, its flow's std widened by
+    how much its flow changes when the window moves by ``stability_offset_px`` (boundary.py)."""
+    det = cfg.detection
+    cand = np.flatnonzero(valid & (likelihood >= ISOLATION_STATIC_BELOW))
+    if cand.size == 0:
+        return likelihood
+    # each neighbour starts at its particle's answer, so one pyramid level and no backward
+    # check suffice: what is measured is how far the answer moves, not whether it is found
+    flow = end[cand] - start[cand]
+    pts = neighbour_points(start[cand], det.stability_offset_px).reshape(-1, 2)
+    guess = pts + np.repeat(flow, 4, axis=0)
+    nb = track(prev, image, pts, np.zeros(len(pts), dtype=bool),
+               dataclasses.replace(cfg.flow, pyramid_levels=0), guess=guess)
+    spread = flow_spread(flow, (nb.end - pts).reshape(-1, 4, 2), nb.valid.reshape(-1, 4))
+    var = (det.stability_gain * np.maximum(spread - det.stability_floor_px, 0.0)) ** 2
+    extra = np.column_stack([var, np.zeros_like(var), var])
+    cov_c = extra if cov is None else cov[cand] + extra
+    cues = motion_cues(ideal_start[cand], ideal_end[cand], motion, road, det, cov_c,
+                       None if foot is None else foot[cand])
+    out = likelihood.copy()
+    out[cand] = np.clip(combine(cues, det.likelihood), 0.0, 1.0)
     return out
 
 

@@ -51,7 +51,7 @@ from appliance.vision.prior import PriorMotion, prior_motion
 from appliance.vision.refinement import MapProblem, refine_motion
 from appliance.vision.span import span_motion
 
-ISOLATION_STATIC_BELOW = 0.5  # a likelihood below this looks static (isolation check: candidates, neighbours)
+LOOKS_INDEPENDENT = 0.5   # a likelihood at least this looks independent (occlusion-edge tests, boundary.py)
 ATTITUDE_LEAK = 0.9   # per frame: the body pitch/roll estimate decays towards the mount's
 
 
@@ -258,8 +258,8 @@ def perceive(state: VisionState, frame: Frame, sensors: SensorSample,
                                    motion, road, cfg, camera)
     if cfg.detection.stability_offset_px > 0.0 and not prior.standstill:
         lik_all = _stability_check(state.prev_image, image, start, tracks.end, ideal_start,
-                                   ideal_end, lik_all, tracks.valid, cov_all, foot_all, prior.R,
-                                   motion, road, cfg, camera)
+                                   ideal_end, lik_all, tracks.valid, cov_all, foot_all, motion,
+                                   road, cfg)
     likelihood = lik_all[:n]
     cov = None if cov_all is None else cov_all[:n]
     foot = None if foot_all is None else foot_all[:n]
@@ -299,7 +299,7 @@ def _isolation_check(prev: NDArray[np.uint8], image: NDArray[np.uint8], start: F
     """The likelihood with isolated evidence capped (boundary.py): flow measured
     ``isolation_spacing_px`` to either side of every point that looks independent."""
     det = cfg.detection
-    cand = np.flatnonzero(valid & (likelihood >= ISOLATION_STATIC_BELOW))
+    cand = np.flatnonzero(valid & (likelihood >= LOOKS_INDEPENDENT))
     if cand.size == 0:
         return likelihood
     pts = neighbour_points(start[cand], det.isolation_spacing_px).reshape(-1, 2)
@@ -309,7 +309,7 @@ def _isolation_check(prev: NDArray[np.uint8], image: NDArray[np.uint8], start: F
     nb_lik = np.clip(combine(cues, det.likelihood), 0.0, 1.0)
     out = likelihood.copy()
     out[cand] = isolated_likelihood(likelihood[cand], nb_lik.reshape(-1, 4),
-                                    nb.valid.reshape(-1, 4), ISOLATION_STATIC_BELOW,
+                                    nb.valid.reshape(-1, 4), LOOKS_INDEPENDENT,
                                     det.isolation_min_valid)
     return out
 
@@ -317,12 +317,12 @@ def _isolation_check(prev: NDArray[np.uint8], image: NDArray[np.uint8], start: F
 def _stability_check(prev: NDArray[np.uint8], image: NDArray[np.uint8], start: FloatArray,
                      end: FloatArray, ideal_start: FloatArray, ideal_end: FloatArray,
                      likelihood: FloatArray, valid: NDArray[np.bool_], cov: FloatArray | None,
-                     foot: FloatArray | None, prior_R: FloatArray, motion: CameraMotion,
-                     road: RoadPlane, cfg: Config, camera: PinholeCamera) -> FloatArray:
+                     foot: FloatArray | None, motion: CameraMotion, road: RoadPlane,
+                     cfg: Config) -> FloatArray:
     """The likelihood of every point that looks independent again, its flow's std widened by
     how much its flow changes when the window moves by ``stability_offset_px`` (boundary.py)."""
     det = cfg.detection
-    cand = np.flatnonzero(valid & (likelihood >= ISOLATION_STATIC_BELOW))
+    cand = np.flatnonzero(valid & (likelihood >= LOOKS_INDEPENDENT))
     if cand.size == 0:
         return likelihood
     # each neighbour starts at its particle's answer, so one pyramid level and no backward

@@ -184,14 +184,12 @@ def resample_particles(x_cur: NDArray[np.floating], likelihood: NDArray[np.float
     outside[:n_res] = ((out[:n_res, 0] < 0.0) | (out[:n_res, 0] > g.width - 1.0)
                        | (out[:n_res, 1] < 0.0) | (out[:n_res, 1] > g.height - 1.0))
     outside[n_res:] = True
-    born = np.zeros(n, dtype=bool)
-    if births is not None and len(births) and n_imp > 0:
+    if births is not None and len(births) and n_imp > 0:   # correction 1, parent -1 as set above
         b = np.asarray(births, dtype=np.float64).reshape(-1, 2)[:n_imp]
         out[n_res:n_res + len(b)] = b
-        born[n_res:n_res + len(b)] = True
-        outside &= ~born
+        outside[n_res:n_res + len(b)] = False
     fresh = g.sample(rng, int(outside.sum()))
     out[outside] = fresh
     corr[outside] = g.correction(fresh)
-    parent[outside | born] = -1
+    parent[outside] = -1
     return out, corr, parent, offset

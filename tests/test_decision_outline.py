@@ -7,6 +7,8 @@ gives it for a pedestrian. Lucas-Kanade up the columns finds where the object en
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import cv2
 import numpy as np
 import pytest
@@ -133,3 +135,36 @@ def test_during_a_pan_the_outline_compares_the_flows_without_the_rotation(
     seen = outline(prev, cur, FEET, DEPTH_M, CAM, default_config.flow, rotation=pan).top
     assert seen == pytest.approx(OBJ[1], abs=8.0)
     assert abs(blind - OBJ[1]) > 20.0
+
+
+def test_a_track_beyond_the_3d_range_is_outlined_at_its_roads_depth(default_config: Config) -> None:
+    """A cyclist at 80 m is further than ground.max_range_m: no ground contact, no 3-D state.
+    Its outline is still measured at the road's depth under its cluster (~80 m), so its
+    reported box is the whole cyclist, not the strip of particles at its wheels; with a 3-D
+    state that state's depth counts, and above the horizon there is none."""
+    from appliance.decision.clustering import Cluster
+    from appliance.decision.decide import outline_depth
+    from appliance.decision.ground_state import CameraPose, GroundTrack
+    from appliance.decision.track_cues import TrackCues
+
+    pose = CameraPose((1.9, 0.0, 1.3), 0.0, 0.0, 0.0)
+    far = 80.0
+    foot_v = CAM.cy + CAM.fy * 1.3 / far + 0.5     # the road 80 m ahead (foot_v is exclusive)
+    assert far > default_config.ground.max_range_m
+
+    def track(foot: float) -> ImageTrack:
+        c = Cluster(bbox=(330.0, foot - 3.0, 340.0, foot), region_bbox=(330.0, foot - 3.0, 340.0, foot),
+                    n=3, foot_v=foot, mean_flow=(0.0, 0.0), mean_probability=0.8,
+                    positions=np.zeros((3, 2)), flows=np.zeros((3, 2)), s=np.ones(3),
+                    weights=np.ones(3))
+        x = np.array([[335.0, 0.0, 0.0], [foot - 1.5, 0.0, 0.0]])
+        return ImageTrack(uid=1, id=1, x=x, P=np.ones((2, 3, 3)), size=(10.0, 3.0), age=9,
+                          misses=0, cluster=c, probability=0.8)
+
+    depth = outline_depth(track(foot_v), TrackCues(), pose, CAM)
+    assert depth == pytest.approx(far, rel=0.01)
+    g = GroundTrack(x=np.array([1.9 + 30.0, 0.0, 0.0, 0.0]), P=np.eye(4), t_update=0.0, updates=5)
+    assert outline_depth(track(foot_v), TrackCues(ground=g), pose, CAM) == pytest.approx(30.0)
+    assert outline_depth(track(CAM.cy - 20.0), TrackCues(), pose, CAM) is None
+    no_cluster = replace(track(foot_v), cluster=None)
+    assert outline_depth(no_cluster, None, pose, CAM) is None

@@ -36,6 +36,7 @@ from appliance.decision.crossing_velocity import (
 from appliance.decision.ground_state import (
     CameraPose,
     GroundTrack,
+    back_project,
     bearing,
     bearing_rate_update,
     camera_pose,
@@ -305,17 +306,35 @@ def moves_over_ground(g: GroundTrack, cfg: Config) -> bool:
 def _outline(tr: ImageTrack, cues: TrackCues | None, pose: CameraPose,
              images: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None, step_m: float,
              cfg: Config, camera: PinholeCamera, ego: EgoMotion) -> Outline | None:
-    """The track's outline (object_extent.py) when its depth is known from the 3-D state
-    (last frame's) and the frame pair is there; else None (reported as tracked)."""
-    g = cues.ground if cues is not None else None
-    if cfg.tracking.outline_max_height_m <= 0.0 or images is None or g is None:
+    """The track's outline (object_extent.py) when its depth (:func:`outline_depth`) is known
+    and the frame pair is there; else None (reported as tracked)."""
+    depth = outline_depth(tr, cues, pose, camera)
+    if cfg.tracking.outline_max_height_m <= 0.0 or images is None or depth is None:
         return None
-    foot = ground_in_camera(pose, g.position)
-    if foot[2] <= 0.5:
-        return None
-    return outline(images[0], images[1], tr.bbox, float(foot[2]), camera, cfg.flow,
-                   step_m / float(foot[2]), cfg.tracking.outline_max_height_m,
+    return outline(images[0], images[1], tr.bbox, depth, camera, cfg.flow,
+                   step_m / depth, cfg.tracking.outline_max_height_m,
                    cfg.tracking.outline_tolerance, rotation=euler_to_matrix(ego.rotation))
+
+
+def outline_depth(tr: ImageTrack, cues: TrackCues | None, pose: CameraPose,
+                  camera: PinholeCamera) -> float | None:
+    """Camera depth (m) at which a track's outline is measured: its 3-D state's (last
+    frame's) or, without one, the road's under the bottom of its cluster. An object further
+    than ``ground.max_range_m`` (a cyclist at 70 m) has no 3-D state, but the outline needs
+    its depth only roughly (how many pixels 2 m are there), not as a measurement of its
+    position. None above the horizon, nearer than 0.5 m, or with neither."""
+    g = cues.ground if cues is not None else None
+    if g is not None:
+        foot = ground_in_camera(pose, g.position)
+    elif tr.cluster is not None:
+        u0, _, u1, _ = tr.cluster.bbox
+        road = back_project(camera, np.array([[0.5 * (u0 + u1), tr.cluster.foot_v - 0.5]]), pose)[0]
+        if not np.all(np.isfinite(road)):
+            return None
+        foot = ground_in_camera(pose, road)
+    else:
+        return None
+    return float(foot[2]) if foot[2] > 0.5 else None
 
 
 def _clip_box(box: tuple[float, float, float, float], camera: PinholeCamera

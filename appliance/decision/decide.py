@@ -308,8 +308,10 @@ def _outline(tr: ImageTrack, cues: TrackCues | None, pose: CameraPose,
              cfg: Config, camera: PinholeCamera, ego: EgoMotion) -> Outline | None:
     """The track's outline (object_extent.py) when its depth (:func:`outline_depth`) is known
     and the frame pair is there; else None (reported as tracked)."""
+    if cfg.tracking.outline_max_height_m <= 0.0 or images is None:
+        return None
     depth = outline_depth(tr, cues, pose, camera)
-    if cfg.tracking.outline_max_height_m <= 0.0 or images is None or depth is None:
+    if depth is None:
         return None
     return outline(images[0], images[1], tr.bbox, depth, camera, cfg.flow,
                    step_m / depth, cfg.tracking.outline_max_height_m,

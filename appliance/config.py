@@ -214,6 +214,8 @@ class TrackingConfig:
     coast_warn_s: float = _p(0.0, 10.0)
     coast_cover_ratio: float = _p(0.0, 10.0)
     coast_cover_frames: int = _p(1, 100)
+    coast_course_ratio: float = _p(0.0, 1.0, lo_open=True)
+    coast_course_points: float = _p(0.0, 1000.0)
     outline_max_height_m: float = _p(0.0, 10.0)
     outline_tolerance: float = _p(0.0, 10.0, lo_open=True)
 

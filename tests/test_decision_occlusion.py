@@ -17,7 +17,16 @@ import pytest
 
 from appliance.config import Config
 from appliance.decision.lost_tracks import LostTrack
-from appliance.decision.occlusion import coasted_cover, cover_ratio, probe_box, probe_points
+from appliance.decision.occlusion import (
+    band_points,
+    coasted_course,
+    coasted_cover,
+    course_points,
+    cover_ratio,
+    head_band,
+    probe_box,
+    probe_points,
+)
 from appliance.decision.track_cues import TrackCues
 from appliance.decision.tracking import ImageTrack
 from appliance.messages import EgoMotion, SensorSample
@@ -138,3 +147,120 @@ def test_coasted_cover_needs_images_and_motion(default_config: Config) -> None:
     assert math.isnan(coasted_cover(tr, foot, None, ego, sensors, 1 / 30, default_config.flow, CAM))
     halt = replace(ego, standstill=True)
     assert math.isnan(coasted_cover(tr, foot, (prev, cur), halt, sensors, 1 / 30, default_config.flow, CAM))
+
+
+HEAD = np.array([445.0, 280.0])   # px, a head's centre in the previous frame
+OBJECT_M = 10.0                   # m, the object's depth now
+
+
+def magnify(point: np.ndarray, depth_cur: float) -> np.ndarray:
+    """Where a static point at ``depth_cur`` m now, seen at ``point`` before, is now."""
+    s = (depth_cur + STEP_M) / depth_cur
+    c = np.array([CAM.cx, CAM.cy])
+    out: np.ndarray = c + s * (point - c)
+    return out
+
+
+def head_pair(head_now: np.ndarray | None, wall_m: float = 20.0) -> tuple[np.ndarray, np.ndarray]:
+    """The wall at ``wall_m`` behind a bright 5 x 5 px head at ``HEAD`` before and at
+    ``head_now`` now (None: no head)."""
+    prev, cur = wall_pair(wall_m)
+    if head_now is not None:
+        for img, p in ((prev, HEAD), (cur, head_now)):
+            u, v = np.round(p).astype(int)
+            img[v - 2:v + 3, u - 2:u + 3] = 250
+    return prev, cur
+
+
+BAND = (425.0, 270.0, 465.0, 290.0)
+
+
+def _count(prev: np.ndarray, cur: np.ndarray, cfg: Config) -> float:
+    return course_points(prev, cur, BAND, OBJECT_M, np.eye(3), T_M, CAM, cfg.flow,
+                         cfg.tracking.coast_course_ratio)
+
+
+def test_course_points_see_a_head_that_keeps_its_bearing(default_config: Config) -> None:
+    """A head 10 m ahead in front of a wall 20 m ahead. Keeping its bearing (a collision
+    course), the points whose window holds it have a flow ratio near 0: several count. Moving
+    like a static point at its depth (it stopped), none does, nor does the wall alone (its
+    ratio is 10.4 / 20.4, about 0.5)."""
+    walking = _count(*head_pair(HEAD), default_config)
+    stopped = _count(*head_pair(magnify(HEAD, OBJECT_M)), default_config)
+    wall = _count(*head_pair(None), default_config)
+    need = default_config.tracking.coast_course_points
+    assert walking >= 3 * need
+    assert stopped < need and wall < need
+    # the band's grid: about every HEAD_GRID_PX (1.5 px), inside the image
+    pts = band_points(BAND, CAM.width, CAM.height)
+    assert len(pts) == 26 * 13 and np.all(np.diff(np.unique(pts[:, 0])) < 1.7)
+    assert len(band_points((600.0, 270.0, 700.0, 290.0), CAM.width, CAM.height)) < 26 * 13
+
+
+def test_unmeasurable_band_gives_no_count(default_config: Config) -> None:
+    flat = np.full((CAM.height, CAM.width), 90, np.uint8)
+    assert math.isnan(_count(flat, flat, default_config))
+    prev, cur = head_pair(HEAD)
+    out = (700.0, 500.0, 760.0, 600.0)
+    assert math.isnan(course_points(prev, cur, out, OBJECT_M, np.eye(3), T_M, CAM,
+                                    default_config.flow, 0.25))
+
+
+def test_head_band_lies_at_the_top_of_an_object_of_its_height() -> None:
+    """A 1.75 m pedestrian standing at row 400, 20 m away (35 px/m at f = 700): its top at row
+    338.75; the band from 0.15 m above to 0.5 m below it, 1.2 m (42 px) wide at least."""
+    u0, v0, u1, v1 = head_band(300.0, 400.0, 10.0, 1.75, 20.0, CAM)
+    assert (u0, u1) == pytest.approx((279.0, 321.0))
+    assert (v0, v1) == pytest.approx((338.75 - 5.25, 338.75 + 17.5))
+    assert head_band(300.0, 400.0, 60.0, 1.75, 20.0, CAM)[0] == pytest.approx(270.0)
+
+
+def test_coasted_course_from_a_coasted_track(default_config: Config) -> None:
+    """From a coasted image track (bottom at row 330, 10 m: a 1.0 m object's top at row 260,
+    the head band 255-295) and its foot point: the count with the image pair; NaN without the
+    pair, at a standstill, or without a known height."""
+    prev, cur = head_pair(HEAD)
+    x = np.zeros((2, 3))
+    x[0, 0], x[1, 0] = 445.0, 326.0
+    tr = ImageTrack(uid=1, id=1, x=x, P=np.zeros((2, 3, 3)), size=(4.0, 8.0), age=10, misses=0,
+                    cluster=None, probability=0.6)
+    ego = EgoMotion(rotation=np.zeros(3), translation_dir=np.array([0.0, 0.0, -1.0]),
+                    epipole_px=(CAM.cx, CAM.cy), prior_rotation=np.zeros(3),
+                    prior_translation_dir=np.array([0.0, 0.0, -1.0]), prior_epipole_px=None,
+                    inliers=100, confident=True)
+    sensors = SensorSample(t=0.0, speed_m_s=STEP_M * 30.0, yaw_rate_rad_s=0.0)
+    foot = np.array([0.5, 1.2, OBJECT_M])
+    args = (ego, sensors, 1.0 / 30.0, default_config.flow, CAM, 0.25)
+    assert coasted_course(tr, foot, 1.0, (prev, cur), *args) >= 9
+    assert coasted_course(tr, foot, 1.0, head_pair(magnify(HEAD, OBJECT_M)), *args) < 3
+    assert math.isnan(coasted_course(tr, foot, 1.0, None, *args))
+    assert math.isnan(coasted_course(tr, foot, 0.0, (prev, cur), *args))
+    halt = replace(ego, standstill=True)
+    assert math.isnan(coasted_course(tr, foot, 1.0, (prev, cur), halt, *args[1:]))
+
+
+def _course(counts: tuple[float, ...], cfg: Config) -> LostTrack:
+    lt = LostTrack(id=1, cues=TrackCues())
+    for c in counts:
+        lt = lt.with_course(c, cfg)
+    return lt
+
+
+def test_a_lost_track_is_off_course_for_good_on_the_median_of_its_counts(
+        default_config: Config) -> None:
+    """Counts of a head band (need 3, median over 5 frames): walking on (the median stays 3
+    or more, one empty frame or a short run of them does not decide), then stopped (the
+    median falls below 3): off course, and it stays so when the band later catches something
+    far that keeps its bearing."""
+    cfg = default_config.with_overrides({"tracking": {"coast_cover_frames": 5,
+                                                      "coast_course_points": 3}})
+    walking = (17.0, 44.0, 0.0, 12.0, 6.0, 3.0, 0.0, 4.0)
+    assert not _course(walking, cfg).off_course
+    stopped = _course((*walking, 0.0, 1.0, 5.0, 0.0), cfg)
+    assert stopped.off_course
+    assert _course((*walking, 0.0, 1.0, 5.0, 0.0, 18.0, 23.0, 16.0, 30.0, 40.0), cfg).off_course
+    assert len(stopped.course) == 5                                   # only the last 5 are kept
+    assert not _course((0.0, 1.0, math.nan, 0.0), cfg).off_course      # 3 measured: too few to say
+    assert not _course((math.nan,) * 8, cfg).off_course               # never measured: as before
+    off = cfg.with_overrides({"tracking": {"coast_course_points": 0}})
+    assert not _course((0.0,) * 8, off).off_course                    # the test off

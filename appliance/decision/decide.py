@@ -13,9 +13,10 @@ there is no randomness, so a replay is deterministic. Per frame:
 5. path vs ego corridor and TTC per confirmed track (threat.py);
 6. warning levels with persistence, hysteresis and hold (warnings.py).
 
-Tracks lost behind an occluder are kept as coasting 3-D states (lost_tracks.py, off by
-default) and, with ``coast_warn_s``, assessed while the flow where they should be shows
-something nearer hiding them (occlusion.py); the per-track cues are a TrackCues (track_cues.py).
+Tracks lost behind an occluder are kept as coasting 3-D states (lost_tracks.py) and, with
+``coast_warn_s``, assessed while the flow where they should be shows something nearer hiding
+them and until the flow where their head should be shows them off the coasted course
+(occlusion.py); the per-track cues are a TrackCues (track_cues.py).
 """
 
 from __future__ import annotations
@@ -57,7 +58,7 @@ from appliance.decision.lost_tracks import (
     reacquire,
 )
 from appliance.decision.object_extent import Outline, extended, outline
-from appliance.decision.occlusion import coasted_cover
+from appliance.decision.occlusion import coasted_course, coasted_cover
 from appliance.decision.probability_map import empty_map, spatio_temporal_filter
 from appliance.decision.scale_ttc import (
     measure_expansion,
@@ -491,8 +492,13 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
                 ratio = coasted_cover(coasted[0], coasted_foot(lt, pose), images, ego, sensors, dt,
                                       cfg.flow, camera)
                 lt = replace(lt, cover=(*lt.cover[1 - cfg.tracking.coast_cover_frames:], ratio))
+            if coasted is not None and cfg.tracking.coast_course_points > 0.0 and not lt.off_course:
+                count = coasted_course(coasted[0], coasted_foot(lt, pose), lt.cues.peak_height_m,
+                                       images, ego, sensors, dt, cfg.flow, camera,
+                                       cfg.tracking.coast_course_ratio)
+                lt = lt.with_course(count, cfg)
             seen.append(lt)
-            if coasted is not None and lt.covered(cfg):
+            if coasted is not None and lt.covered(cfg) and not lt.off_course:
                 threats.append(replace(assess(*coasted, sensors, cfg, camera), coasted=True))
         lost = tuple(seen)
     threats.sort(key=lambda th: th.report.id)

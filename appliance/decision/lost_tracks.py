@@ -4,7 +4,9 @@ A confirmed track the image tracker drops while it moves over ground becomes a
 :class:`LostTrack`: its 3-D state coasts at constant velocity over ground (ego motion
 removed) for ``tracking.reacquire_s``; a new track whose first ground contact falls in its
 gate continues it under its id (:func:`reacquire`). With ``tracking.coast_warn_s`` it is
-also assessed from the coasted state (:func:`coasted_track`). Both off by default.
+also assessed from the coasted state (:func:`coasted_track`) while something nearer covers
+it (:meth:`LostTrack.covered`) and until its head, where it shows above the occluder, is seen
+off the coasted course (:meth:`LostTrack.with_course`; occlusion.py).
 """
 
 from __future__ import annotations
@@ -39,6 +41,8 @@ class LostTrack:
     cues: TrackCues
     track: ImageTrack | None = None  # the image track when it was lost (size, probability)
     cover: tuple[float, ...] = ()    # its last cover ratios (occlusion.cover_ratio; NaN: not measured)
+    course: tuple[float, ...] = ()   # its head band's last counts (occlusion.coasted_course; NaN: not measured)
+    off_course: bool = False         # latched once its head was seen off its coasted course
 
     def covered(self, cfg: Config) -> bool:
         """Whether something nearer hides it: the median of its last ``coast_cover_frames``
@@ -48,6 +52,20 @@ class LostTrack:
         last = np.asarray(self.cover[-cfg.tracking.coast_cover_frames:], dtype=np.float64)
         last = last[np.isfinite(last)]
         return bool(last.size) and float(np.median(last)) >= cfg.tracking.coast_cover_ratio
+
+    def with_course(self, count: float, cfg: Config) -> LostTrack:
+        """This lost track with one more head-band count (``occlusion.coasted_course``). Once
+        the median of its last ``coast_cover_frames`` measured counts falls below
+        ``coast_course_points``, it is off course for good: what showed of it above the
+        occluder stopped keeping its bearing (a pedestrian who stopped behind a parked car),
+        and its coasted state, which cannot see that, is no longer assessed."""
+        frames = cfg.tracking.coast_cover_frames
+        course = (*self.course[1 - frames:], count)
+        last = np.asarray(course, dtype=np.float64)
+        last = last[np.isfinite(last)]
+        need = cfg.tracking.coast_course_points
+        off = self.off_course or (need > 0 and last.size >= frames and float(np.median(last)) < need)
+        return replace(self, course=course, off_course=off)
 
 
 def reacquire(lost: tuple[LostTrack, ...], contact: GroundContact, cfg: Config

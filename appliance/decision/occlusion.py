@@ -13,6 +13,16 @@ box (an occluder hides the legs first; the head may show above a car's roof): Lu
 from the current frame back to the previous one (forward-backward checked), the rotation
 removed, and each translational flow projected on the static flow of the object's depth
 (eq. of :func:`likelihood.static_flow`). Pure; the images come from the pipeline step.
+
+Hidden, but is it still coming? A pedestrian who stops behind a parked car and one who walks
+on are the same to the cover test; what tells them apart is what shows above the roof, the
+head. On a collision course an object keeps its bearing, so its head barely moves in the
+image (translational flow ~0, a ratio near 0), while a head that stopped moves like the static
+scene at its depth (ratio 1) and the background behind it, farther, in between (on the
+simulator's twins: 0.1 walking on, 0.6 slowing down, 1.0 stopped, 0.4-0.6 facade, per frame at
+the true head). :func:`coasted_course` counts the points of a dense grid over the band where
+the coasted object's head should be whose ratio is that low; the head is a few pixels wide, so
+only the points whose Lucas-Kanade window holds it (within ~4 px) see it.
 """
 
 from __future__ import annotations
@@ -31,6 +41,11 @@ from appliance.vision.likelihood import derotate, static_flow
 
 MIN_STATIC_FLOW_PX = 0.5   # points where the object's static flow is shorter carry no depth information
 GRID = 6                   # points per side of the probe grid
+HEAD_BAND_M = (0.5, 0.15)  # m below and above an object's top: the band its head is looked for in
+HEAD_BAND_WIDTH_M = 1.2    # m, the band's width at least (a coasted position is off by a few px)
+HEAD_GRID_PX = 1.5         # px between the band's points (a head 4-5 px wide is seen by ~4 px of them)
+HEAD_GRID_MAX = (40, 30)   # points across and down at most (a near object: the spacing grows)
+MIN_HEAD_POINTS = 3        # measured points a count needs
 
 
 def probe_points(box: tuple[float, float, float, float], width: int, height: int,
@@ -43,19 +58,17 @@ def probe_points(box: tuple[float, float, float, float], width: int, height: int
     return pts[in_image(pts, width, height)]
 
 
-def cover_ratio(prev: NDArray[np.uint8], cur: NDArray[np.uint8], box: tuple[float, float, float, float],
-                depth_m: float, R: FloatArray, t_m: FloatArray, camera: PinholeCamera,
-                flow_cfg: FlowConfig) -> tuple[float, int]:
-    """Median ratio of the measured translational flow in ``box`` (current frame, px) to a static
-    surface's at camera depth ``depth_m``, and the number of points it rests on (0: NaN ratio).
+def flow_ratios(prev: NDArray[np.uint8], cur: NDArray[np.uint8], pts: FloatArray, depth_m: float,
+                R: FloatArray, t_m: FloatArray, camera: PinholeCamera, flow_cfg: FlowConfig) -> FloatArray:
+    """Per point (M,) of ``pts`` (current frame, px): its measured translational flow projected
+    on a static surface's at camera depth ``depth_m``, over that flow's length; NaN where not
+    measured or where the static flow is shorter than ``MIN_STATIC_FLOW_PX``.
 
     R (3, 3), t_m (3,) m: the camera motion ``X_cur = R X_prev + t`` from the previous frame.
-    About 1: what is there is at the object's depth (the object itself, stopped); below 1:
-    farther (background: the object has gone); above 1: something nearer covers it.
     """
-    pts = probe_points(box, camera.width, camera.height)
+    pts = np.asarray(pts, dtype=np.float64).reshape(-1, 2)
     if len(pts) == 0 or not np.all(np.isfinite(t_m)) or depth_m <= 0.0:
-        return float("nan"), 0
+        return np.full(len(pts), np.nan)
     flow, valid = flow_into(prev, cur, pts, flow_cfg,
                             lk_start(camera, pts, R.T) if flow_cfg.rotation_guess else None)
     x_cur = camera.undistort(pts)
@@ -65,7 +78,24 @@ def cover_ratio(prev: NDArray[np.uint8], cur: NDArray[np.uint8], box: tuple[floa
     length2 = np.einsum("ij,ij->i", f_s, f_s)
     with np.errstate(invalid="ignore", divide="ignore"):
         ratio = np.einsum("ij,ij->i", flow_t, f_s) / length2
-        ok = valid & np.isfinite(ratio) & (length2 >= MIN_STATIC_FLOW_PX ** 2)
+    ok = valid & np.isfinite(ratio) & (length2 >= MIN_STATIC_FLOW_PX ** 2)
+    out: FloatArray = np.where(ok, ratio, np.nan)
+    return out
+
+
+def cover_ratio(prev: NDArray[np.uint8], cur: NDArray[np.uint8], box: tuple[float, float, float, float],
+                depth_m: float, R: FloatArray, t_m: FloatArray, camera: PinholeCamera,
+                flow_cfg: FlowConfig) -> tuple[float, int]:
+    """Median ratio of the measured translational flow in ``box`` (current frame, px) to a static
+    surface's at camera depth ``depth_m`` (:func:`flow_ratios`), and the number of points it
+    rests on (0: NaN ratio).
+
+    About 1: what is there is at the object's depth (the object itself, stopped); below 1:
+    farther (background: the object has gone); above 1: something nearer covers it.
+    """
+    ratio = flow_ratios(prev, cur, probe_points(box, camera.width, camera.height), depth_m, R, t_m,
+                        camera, flow_cfg)
+    ok = np.isfinite(ratio)
     if not np.any(ok):
         return float("nan"), 0
     return float(np.median(ratio[ok])), int(ok.sum())
@@ -98,3 +128,58 @@ def coasted_cover(track: ImageTrack, foot: FloatArray | None,
     ratio, _ = cover_ratio(images[0], images[1], box, float(foot[2]), euler_to_matrix(ego.rotation),
                            t_m, camera, flow_cfg)
     return ratio
+
+
+def head_band(u: float, v_bottom: float, width_px: float, height_m: float, depth_m: float,
+              camera: PinholeCamera) -> tuple[float, float, float, float]:
+    """The band (u0, v0, u1, v1) px where the head of an object ``height_m`` tall standing at
+    image column ``u``, row ``v_bottom`` and ``depth_m`` should be: ``HEAD_BAND_M`` below and
+    above its top, at least ``HEAD_BAND_WIDTH_M`` and ``width_px`` wide."""
+    px_per_m = camera.fy / depth_m
+    top = v_bottom - height_m * px_per_m
+    half = 0.5 * max(width_px, HEAD_BAND_WIDTH_M * camera.fx / depth_m)
+    return (u - half, top - HEAD_BAND_M[1] * px_per_m, u + half, top + HEAD_BAND_M[0] * px_per_m)
+
+
+def band_points(box: tuple[float, float, float, float], width: int, height: int) -> FloatArray:
+    """A grid (M, 2) px over ``box`` every ``HEAD_GRID_PX`` (at most ``HEAD_GRID_MAX``), inside the image."""
+    u0, v0, u1, v1 = box
+    nu = int(np.clip((u1 - u0) / HEAD_GRID_PX, 2, HEAD_GRID_MAX[0]))
+    nv = int(np.clip((v1 - v0) / HEAD_GRID_PX, 2, HEAD_GRID_MAX[1]))
+    uu, vv = np.meshgrid(np.linspace(u0, u1, nu), np.linspace(v0, v1, nv))
+    pts = np.column_stack([uu.ravel(), vv.ravel()])
+    return pts[in_image(pts, width, height)]
+
+
+def course_points(prev: NDArray[np.uint8], cur: NDArray[np.uint8], box: tuple[float, float, float, float],
+                  depth_m: float, R: FloatArray, t_m: FloatArray, camera: PinholeCamera,
+                  flow_cfg: FlowConfig, low_ratio: float) -> float:
+    """How many points of the band ``box`` (:func:`band_points`) have a flow ratio
+    (:func:`flow_ratios`) below ``low_ratio``: something there keeps its bearing, as an object
+    at ``depth_m`` on a collision course does. NaN with fewer than ``MIN_HEAD_POINTS`` measured."""
+    ratio = flow_ratios(prev, cur, band_points(box, camera.width, camera.height), depth_m, R, t_m,
+                        camera, flow_cfg)
+    ok = np.isfinite(ratio)
+    if ok.sum() < MIN_HEAD_POINTS:
+        return float("nan")
+    return float(np.sum(ratio[ok] < low_ratio))
+
+
+def coasted_course(track: ImageTrack, foot: FloatArray | None, height_m: float,
+                   images: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None, ego: EgoMotion,
+                   sensors: SensorSample, dt: float, flow_cfg: FlowConfig, camera: PinholeCamera,
+                   low_ratio: float) -> float:
+    """:func:`course_points` in the head band (:func:`head_band`) of a coasted track
+    (``lost_tracks.coasted_track``) ``height_m`` tall whose ground position is ``foot``
+    (camera frame, m); NaN when it cannot be measured (no images, standstill, speed unknown,
+    height unknown, the band out of the image)."""
+    speed = sensors.speed_m_s
+    if images is None or foot is None or ego.standstill or not math.isfinite(speed) \
+            or foot[2] <= 0.5 or height_m <= 0.0:
+        return float("nan")
+    depth = float(foot[2])
+    u, v = float(track.x[0, 0]), float(track.x[1, 0])
+    box = head_band(u, v + 0.5 * track.size[1], track.size[0], height_m, depth, camera)
+    t_m = np.asarray(ego.translation_dir, dtype=np.float64) * speed * dt
+    return course_points(images[0], images[1], box, depth, euler_to_matrix(ego.rotation), t_m,
+                         camera, flow_cfg, low_ratio)

@@ -251,16 +251,19 @@ def test_a_lost_track_is_off_course_for_good_on_the_median_of_its_counts(
     """Counts of a head band (need 3, median over 5 frames): walking on (the median stays 3
     or more, one empty frame or a short run of them does not decide), then stopped (the
     median falls below 3): off course, and it stays so when the band later catches something
-    far that keeps its bearing."""
+    far that keeps its bearing. A head never seen on course (an occluder taller than the
+    object) does not make it off course."""
     cfg = default_config.with_overrides({"tracking": {"coast_cover_frames": 5,
                                                       "coast_course_points": 3}})
     walking = (17.0, 44.0, 0.0, 12.0, 6.0, 3.0, 0.0, 4.0)
-    assert not _course(walking, cfg).off_course
+    assert not _course(walking, cfg).off_course and _course(walking, cfg).seen_on_course
     stopped = _course((*walking, 0.0, 1.0, 5.0, 0.0), cfg)
     assert stopped.off_course
     assert _course((*walking, 0.0, 1.0, 5.0, 0.0, 18.0, 23.0, 16.0, 30.0, 40.0), cfg).off_course
     assert len(stopped.course) == 5                                   # only the last 5 are kept
-    assert not _course((0.0, 1.0, math.nan, 0.0), cfg).off_course      # 3 measured: too few to say
+    assert not _course((20.0, 30.0, 0.0, 1.0, math.nan, 0.0), cfg).off_course  # 4 measured: too few to say
     assert not _course((math.nan,) * 8, cfg).off_course               # never measured: as before
+    never = _course((0.0, 1.0, 0.0, 2.0, 0.0, 0.0, 1.0), cfg)        # the head never showed
+    assert not never.off_course and not never.seen_on_course
     off = cfg.with_overrides({"tracking": {"coast_course_points": 0}})
-    assert not _course((0.0,) * 8, off).off_course                    # the test off
+    assert not _course((*walking, 0.0, 0.0, 0.0, 0.0, 0.0), off).off_course   # the test off

@@ -206,9 +206,11 @@ def far_crossing_run(cfg: Config, frames: int) -> list[tuple[int, int]]:
 
 def test_flow_over_a_span_finds_a_slow_far_crossing_object_one_frame_cannot(default_config: Config) -> None:
     """26 px tall, 55 m ahead, walking at 1.4 m/s: its flow differs from the static scene's
-    by 0.6 px per frame, about sigma_p; over 4 frames it is found (``span``)."""
+    by 0.6 px per frame, about sigma_p; over 4 frames it is found (``span``). In one frame
+    only the births from the static pool's corners reach it, late and few (9 particles by
+    the last frame with 500 corners, 2 with 300)."""
     one = far_crossing_run(default_config.with_overrides({"detection": {"span_frames": 1}}), 12)
     four = far_crossing_run(default_config.with_overrides({"detection": {"span_frames": 4}}), 12)
-    assert max(on for on, _ in one) <= 2
     on, off = four[-1]
+    assert max(o for o, _ in one) * 10 <= on
     assert on >= 100 and on > 3 * off

@@ -42,7 +42,8 @@ class LostTrack:
     track: ImageTrack | None = None  # the image track when it was lost (size, probability)
     cover: tuple[float, ...] = ()    # its last cover ratios (occlusion.cover_ratio; NaN: not measured)
     course: tuple[float, ...] = ()   # its head band's last counts (occlusion.coasted_course; NaN: not measured)
-    off_course: bool = False         # latched once its head was seen off its coasted course
+    seen_on_course: bool = False     # its head was seen keeping its bearing while hidden
+    off_course: bool = False         # latched once its head, seen on course, was no longer
 
     def covered(self, cfg: Config) -> bool:
         """Whether something nearer hides it: the median of its last ``coast_cover_frames``
@@ -54,18 +55,24 @@ class LostTrack:
         return bool(last.size) and float(np.median(last)) >= cfg.tracking.coast_cover_ratio
 
     def with_course(self, count: float, cfg: Config) -> LostTrack:
-        """This lost track with one more head-band count (``occlusion.coasted_course``). Once
-        the median of its last ``coast_cover_frames`` measured counts falls below
-        ``coast_course_points``, it is off course for good: what showed of it above the
-        occluder stopped keeping its bearing (a pedestrian who stopped behind a parked car),
-        and its coasted state, which cannot see that, is no longer assessed."""
+        """This lost track with one more head-band count (``occlusion.coasted_course``).
+
+        While the median of its last ``coast_cover_frames`` measured counts is at least
+        ``coast_course_points``, its head is seen keeping its bearing above the occluder. Once
+        it was, and the median then falls below that, the track is off course for good: what
+        showed of it stopped keeping its bearing (a pedestrian who stopped behind a parked
+        car), and its coasted state, which cannot see that, is no longer assessed. A track
+        whose head was never seen (an occluder taller than it) coasts as before."""
         frames = cfg.tracking.coast_cover_frames
         course = (*self.course[1 - frames:], count)
         last = np.asarray(course, dtype=np.float64)
         last = last[np.isfinite(last)]
         need = cfg.tracking.coast_course_points
-        off = self.off_course or (need > 0 and last.size >= frames and float(np.median(last)) < need)
-        return replace(self, course=course, off_course=off)
+        if need <= 0.0 or last.size < frames:
+            return replace(self, course=course)
+        on = float(np.median(last)) >= need
+        return replace(self, course=course, seen_on_course=self.seen_on_course or on,
+                       off_course=self.off_course or (self.seen_on_course and not on))
 
 
 def reacquire(lost: tuple[LostTrack, ...], contact: GroundContact, cfg: Config

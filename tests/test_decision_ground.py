@@ -13,6 +13,7 @@ from appliance.decision.ground_state import (
     GroundContact,
     GroundTrack,
     back_project,
+    bearing_update,
     ground_contact,
     ground_init,
     ground_predict,
@@ -415,3 +416,29 @@ def test_range_rate_far_from_a_confident_state_is_skipped() -> None:
     assert range_rate_update(g, rate, 0.001 ** 2, pose, 10.0, gate_sigmas=3.5) is g
     taken = range_rate_update(g, rate, 0.001 ** 2, pose, 10.0)
     assert taken.velocity[0] < -4.0
+
+
+def test_a_bearing_corrects_only_across_the_line_of_sight() -> None:
+    """A coasted state 20 m ahead, 3 m right, whose position and velocity are correlated both
+    along and across the line of sight; a bearing 0.5 m further left at that range. The
+    position moves toward the ray (by most of the 0.5 m: the bearing is far more precise), the
+    velocity across the ray follows through its correlation, and the range and the velocity
+    along the ray stay as they were (a bearing says nothing about them)."""
+    cam = (1.9, 0.0)
+    x = np.array([21.9, -3.0, 0.0, 1.2])
+    A = np.array([[1.0, 0.3, 0.5, 0.2], [0.0, 1.0, 0.1, 0.6], [0.0, 0.0, 0.8, 0.1], [0.0, 0.0, 0.0, 0.7]])
+    P = A @ A.T
+    g = GroundTrack(x, P, 1.0, 12)
+    az = math.atan2(-2.5, 20.0)
+    out = bearing_update(g, az, cam, 2.0 / 700.0)
+    d = np.array([math.cos(az), math.sin(az)])
+    n = np.array([-math.sin(az), math.cos(az)])
+    rel0, rel1 = g.x[:2] - np.array(cam), out.x[:2] - np.array(cam)
+    assert abs(n @ rel1) < 0.2 * abs(n @ rel0)                   # onto the measured ray
+    assert d @ rel1 == pytest.approx(d @ rel0, abs=1e-9)         # range along it unchanged
+    assert d @ out.velocity == pytest.approx(d @ g.velocity, abs=1e-9)
+    assert abs(n @ (out.velocity - g.velocity)) > 0.05           # the correlated velocity follows
+    assert (out.t_update, out.updates) == (g.t_update, g.updates)  # no ground contact
+    assert np.all(np.linalg.eigvalsh(out.P) > 0.0)
+    assert float(n @ out.P[:2, :2] @ n) < float(n @ g.P[:2, :2] @ n)
+    assert bearing_update(g, math.nan, cam, 0.003) is g

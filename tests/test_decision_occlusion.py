@@ -177,7 +177,7 @@ BAND = (425.0, 270.0, 465.0, 290.0)
 
 def _count(prev: np.ndarray, cur: np.ndarray, cfg: Config) -> float:
     return course_points(prev, cur, BAND, OBJECT_M, np.eye(3), T_M, CAM, cfg.flow,
-                         cfg.tracking.coast_course_ratio)
+                         cfg.tracking.coast_course_ratio)[0]
 
 
 def test_course_points_see_a_head_that_keeps_its_bearing(default_config: Config) -> None:
@@ -191,6 +191,10 @@ def test_course_points_see_a_head_that_keeps_its_bearing(default_config: Config)
     need = default_config.tracking.coast_course_points
     assert walking >= 3 * need
     assert stopped < need and wall < need
+    # the points that see it lie around its column
+    column = course_points(*head_pair(HEAD), BAND, OBJECT_M, np.eye(3), T_M, CAM,
+                           default_config.flow, default_config.tracking.coast_course_ratio)[1]
+    assert column == pytest.approx(HEAD[0], abs=2.0)
     # the band's grid: about every HEAD_GRID_PX (1.5 px), inside the image
     pts = band_points(BAND, CAM.width, CAM.height)
     assert len(pts) == 26 * 13 and np.all(np.diff(np.unique(pts[:, 0])) < 1.7)
@@ -202,8 +206,8 @@ def test_unmeasurable_band_gives_no_count(default_config: Config) -> None:
     assert math.isnan(_count(flat, flat, default_config))
     prev, cur = head_pair(HEAD)
     out = (700.0, 500.0, 760.0, 600.0)
-    assert math.isnan(course_points(prev, cur, out, OBJECT_M, np.eye(3), T_M, CAM,
-                                    default_config.flow, 0.25))
+    assert all(math.isnan(v) for v in course_points(prev, cur, out, OBJECT_M, np.eye(3), T_M,
+                                                    CAM, default_config.flow, 0.25))
 
 
 def test_head_band_lies_at_the_top_of_an_object_of_its_height() -> None:
@@ -231,12 +235,13 @@ def test_coasted_course_from_a_coasted_track(default_config: Config) -> None:
     sensors = SensorSample(t=0.0, speed_m_s=STEP_M * 30.0, yaw_rate_rad_s=0.0)
     foot = np.array([0.5, 1.2, OBJECT_M])
     args = (ego, sensors, 1.0 / 30.0, default_config.flow, CAM, 0.25)
-    assert coasted_course(tr, foot, 1.0, (prev, cur), *args) >= 9
-    assert coasted_course(tr, foot, 1.0, head_pair(magnify(HEAD, OBJECT_M)), *args) < 3
-    assert math.isnan(coasted_course(tr, foot, 1.0, None, *args))
-    assert math.isnan(coasted_course(tr, foot, 0.0, (prev, cur), *args))
+    count, column = coasted_course(tr, foot, 1.0, (prev, cur), *args)
+    assert count >= 9 and column == pytest.approx(HEAD[0], abs=2.0)
+    assert coasted_course(tr, foot, 1.0, head_pair(magnify(HEAD, OBJECT_M)), *args)[0] < 3
+    assert math.isnan(coasted_course(tr, foot, 1.0, None, *args)[0])
+    assert math.isnan(coasted_course(tr, foot, 0.0, (prev, cur), *args)[0])
     halt = replace(ego, standstill=True)
-    assert math.isnan(coasted_course(tr, foot, 1.0, (prev, cur), halt, *args[1:]))
+    assert math.isnan(coasted_course(tr, foot, 1.0, (prev, cur), halt, *args[1:])[0])
 
 
 def _course(counts: tuple[float, ...], cfg: Config) -> LostTrack:
@@ -254,7 +259,8 @@ def test_a_lost_track_is_off_course_for_good_on_the_median_of_its_counts(
     far that keeps its bearing. A head never seen on course (an occluder taller than the
     object) does not make it off course."""
     cfg = default_config.with_overrides({"tracking": {"coast_cover_frames": 5,
-                                                      "coast_course_points": 3}})
+                                                      "coast_course_points": 3,
+                                                      "coast_course_fraction": 0.0}})
     walking = (17.0, 44.0, 0.0, 12.0, 6.0, 3.0, 0.0, 4.0)
     assert not _course(walking, cfg).off_course and _course(walking, cfg).seen_on_course
     stopped = _course((*walking, 0.0, 1.0, 5.0, 0.0), cfg)
@@ -267,3 +273,19 @@ def test_a_lost_track_is_off_course_for_good_on_the_median_of_its_counts(
     assert not never.off_course and not never.seen_on_course
     off = cfg.with_overrides({"tracking": {"coast_course_points": 0}})
     assert not _course((*walking, 0.0, 0.0, 0.0, 0.0, 0.0), off).off_course   # the test off
+
+
+def test_off_course_also_below_a_fraction_of_the_highest_count(default_config: Config) -> None:
+    """Stop-behind seed 2 with the head's bearing fed to the coasted state: 30-70 points while
+    the pedestrian walked on hidden, then 1-8 once it slowed down, a few of them background.
+    Against 3 points alone it would stay on course; against a quarter of its highest median
+    (50: 12.5) it is off course at the third frame of the slow-down."""
+    walked = (17.0, 44.0, 44.0, 24.0, 12.0, 27.0, 36.0, 73.0, 50.0, 43.0, 56.0, 34.0, 29.0)
+    slowed = (1.0, 3.0, 2.0, 6.0, 4.0, 4.0, 0.0, 15.0, 6.0)
+    base = {"coast_cover_frames": 5, "coast_course_points": 3}
+    points = default_config.with_overrides({"tracking": {**base, "coast_course_fraction": 0.0}})
+    fraction = default_config.with_overrides({"tracking": {**base, "coast_course_fraction": 0.25}})
+    assert not _course((*walked, *slowed), points).off_course
+    assert not _course((*walked, *slowed[:2]), fraction).off_course
+    assert _course((*walked, *slowed[:3]), fraction).off_course
+    assert _course((*walked, *slowed[:3]), fraction).course_peak == 50.0

@@ -40,6 +40,7 @@ from appliance.decision.ground_state import (
     back_project,
     bearing,
     bearing_rate_update,
+    bearing_update,
     camera_pose,
     ground_absorb,
     ground_contact,
@@ -93,6 +94,7 @@ from appliance.vision.geometry import PinholeCamera, euler_to_matrix
 BEARING_HISTORY = 10  # frames of bearing kept per track for its rate
 OUTLINE_MIN_POINTS = 8  # outline flows the scale cue needs to prefer them to the cluster's
 DEPTH_MEMORY_S = 3.0  # s, a depth carried on by the scale cue alone is forgotten after this
+BEARING_GATE_SIGMAS = 3.0  # a hidden object's head column further than this (std) from its coasted one is not it
 
 
 @dataclass(frozen=True)
@@ -493,10 +495,20 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
                                       cfg.flow, camera)
                 lt = replace(lt, cover=(*lt.cover[1 - cfg.tracking.coast_cover_frames:], ratio))
             if coasted is not None and cfg.tracking.coast_course_points > 0.0 and not lt.off_course:
-                count = coasted_course(coasted[0], coasted_foot(lt, pose), lt.cues.peak_height_m,
-                                       images, ego, sensors, dt, cfg.flow, camera,
-                                       cfg.tracking.coast_course_ratio)
+                count, column = coasted_course(coasted[0], coasted_foot(lt, pose),
+                                               lt.cues.peak_height_m, images, ego, sensors, dt,
+                                               cfg.flow, camera, cfg.tracking.coast_course_ratio)
                 lt = lt.with_course(count, cfg)
+                g, std_px = lt.cues.ground, cfg.tracking.coast_bearing_std_px
+                if g is not None and lt.seen_on_course and not lt.off_course and std_px > 0.0 \
+                        and count >= cfg.tracking.coast_course_points \
+                        and abs(column - float(coasted[0].x[0, 0])) <= BEARING_GATE_SIGMAS * std_px:
+                    # the head keeping its bearing is where the hidden object is, across the ray
+                    azimuth = bearing(camera, (column, float(coasted[0].x[1, 0])), pose)
+                    g = bearing_update(g, azimuth, (pose.position[0], pose.position[1]),
+                                       std_px / camera.fx)
+                    lt = replace(lt, cues=replace(lt.cues, ground=g))
+                    coasted = coasted_track(lt, t, pose, cfg, camera)
             seen.append(lt)
             if coasted is not None and lt.covered(cfg) and not lt.off_course:
                 threats.append(replace(assess(*coasted, sensors, cfg, camera), coasted=True))

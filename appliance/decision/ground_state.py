@@ -286,6 +286,32 @@ def bearing_rate_update(g: GroundTrack, bearing_rate: float, speed: float, yaw_r
     return velocity_update(g, los.tangent, los.crossing, los.r * rate_std)
 
 
+def bearing_update(g: GroundTrack, azimuth: float, camera_xy: tuple[float, float],
+                   std_rad: float) -> GroundTrack:
+    """Update of the position and velocity across the line of sight with a measured
+    ``azimuth`` (rad, vehicle frame, seen from the camera at ``camera_xy``; ``std_rad`` its
+    std): the position's component across the ray, ``n . (p - c)``, is measured as 0 +- r std
+    (r the state's range). Only the across-ray components are corrected (a Kalman gain
+    restricted to them, Joseph form): a bearing says nothing about the range, and through the
+    state's correlations a full update moved a coasted range by metres. Time and counts are
+    unchanged (it is no ground contact). Used for a hidden object whose head shows."""
+    c = np.asarray(camera_xy, dtype=np.float64)
+    r = float(np.hypot(*(g.x[:2] - c)))
+    if not math.isfinite(azimuth) or r < 0.5 or std_rad <= 0.0:
+        return g
+    n = np.array([-math.sin(azimuth), math.cos(azimuth)])
+    T = np.zeros((2, 4))
+    T[0, :2], T[1, 2:] = n, n                  # across-ray position and velocity
+    H = T[:1]
+    S = float((H @ g.P @ H.T)[0, 0]) + (r * std_rad) ** 2
+    K = T.T @ (T @ g.P @ H.T) / S              # (4, 1): the gain of the across-ray components
+    innovation = -float(n @ (g.x[:2] - c))
+    x = g.x + K[:, 0] * innovation
+    A = np.eye(4) - K @ H
+    P = A @ g.P @ A.T + (r * std_rad) ** 2 * (K @ K.T)
+    return GroundTrack(x=x, P=P, t_update=g.t_update, updates=g.updates, rejected=g.rejected)
+
+
 def ego_step(speed: float, yaw_rate: float, dt: float) -> tuple[FloatArray, FloatArray]:
     """(Rt, d): the old-to-new frame rotation Rz(-dpsi) (2, 2) and the ego displacement d
     (2,) m in the old frame, for a circular arc at ``speed`` m/s and ``yaw_rate`` rad/s."""

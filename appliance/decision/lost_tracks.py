@@ -43,6 +43,7 @@ class LostTrack:
     cover: tuple[float, ...] = ()    # its last cover ratios (occlusion.cover_ratio; NaN: not measured)
     course: tuple[float, ...] = ()   # its head band's last counts (occlusion.coasted_course; NaN: not measured)
     seen_on_course: bool = False     # its head was seen keeping its bearing while hidden
+    course_peak: float = 0.0         # the highest median count so far
     off_course: bool = False         # latched once its head, seen on course, was no longer
 
     def covered(self, cfg: Config) -> bool:
@@ -58,8 +59,10 @@ class LostTrack:
         """This lost track with one more head-band count (``occlusion.coasted_course``).
 
         While the median of its last ``coast_cover_frames`` measured counts is at least
-        ``coast_course_points``, its head is seen keeping its bearing above the occluder. Once
-        it was, and the median then falls below that, the track is off course for good: what
+        ``coast_course_points`` and ``coast_course_fraction`` of its highest median so far (a
+        head seen closer covers more points), its head is seen keeping its bearing above the
+        occluder. Once it was, and the median then falls below that, the track is off course
+        for good: what
         showed of it stopped keeping its bearing (a pedestrian who stopped behind a parked
         car), and its coasted state, which cannot see that, is no longer assessed. A track
         whose head was never seen (an occluder taller than it) coasts as before."""
@@ -70,9 +73,11 @@ class LostTrack:
         need = cfg.tracking.coast_course_points
         if need <= 0.0 or last.size < frames:
             return replace(self, course=course)
-        on = float(np.median(last)) >= need
+        median = float(np.median(last))
+        on = median >= max(need, cfg.tracking.coast_course_fraction * self.course_peak)
         return replace(self, course=course, seen_on_course=self.seen_on_course or on,
-                       off_course=self.off_course or (self.seen_on_course and not on))
+                       off_course=self.off_course or (self.seen_on_course and not on),
+                       course_peak=max(self.course_peak, median))
 
 
 def reacquire(lost: tuple[LostTrack, ...], contact: GroundContact, cfg: Config

@@ -153,22 +153,25 @@ def band_points(box: tuple[float, float, float, float], width: int, height: int)
 
 def course_points(prev: NDArray[np.uint8], cur: NDArray[np.uint8], box: tuple[float, float, float, float],
                   depth_m: float, R: FloatArray, t_m: FloatArray, camera: PinholeCamera,
-                  flow_cfg: FlowConfig, low_ratio: float) -> float:
+                  flow_cfg: FlowConfig, low_ratio: float) -> tuple[float, float]:
     """How many points of the band ``box`` (:func:`band_points`) have a flow ratio
     (:func:`flow_ratios`) below ``low_ratio``: something there keeps its bearing, as an object
-    at ``depth_m`` on a collision course does. NaN with fewer than ``MIN_HEAD_POINTS`` measured."""
-    ratio = flow_ratios(prev, cur, band_points(box, camera.width, camera.height), depth_m, R, t_m,
-                        camera, flow_cfg)
+    at ``depth_m`` on a collision course does; and their median column (px). NaN with fewer
+    than ``MIN_HEAD_POINTS`` measured (count) or without such a point (column)."""
+    pts = band_points(box, camera.width, camera.height)
+    ratio = flow_ratios(prev, cur, pts, depth_m, R, t_m, camera, flow_cfg)
     ok = np.isfinite(ratio)
     if ok.sum() < MIN_HEAD_POINTS:
-        return float("nan")
-    return float(np.sum(ratio[ok] < low_ratio))
+        return float("nan"), float("nan")
+    low = ok & (ratio < low_ratio)
+    column = float(np.median(pts[low, 0])) if low.any() else float("nan")
+    return float(low.sum()), column
 
 
 def coasted_course(track: ImageTrack, foot: FloatArray | None, height_m: float,
                    images: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None, ego: EgoMotion,
                    sensors: SensorSample, dt: float, flow_cfg: FlowConfig, camera: PinholeCamera,
-                   low_ratio: float) -> float:
+                   low_ratio: float) -> tuple[float, float]:
     """:func:`course_points` in the head band (:func:`head_band`) of a coasted track
     (``lost_tracks.coasted_track``) ``height_m`` tall whose ground position is ``foot``
     (camera frame, m); NaN when it cannot be measured (no images, standstill, speed unknown,
@@ -176,7 +179,7 @@ def coasted_course(track: ImageTrack, foot: FloatArray | None, height_m: float,
     speed = sensors.speed_m_s
     if images is None or foot is None or ego.standstill or not math.isfinite(speed) \
             or foot[2] <= 0.5 or height_m <= 0.0:
-        return float("nan")
+        return float("nan"), float("nan")
     depth = float(foot[2])
     u, v = float(track.x[0, 0]), float(track.x[1, 0])
     box = head_band(u, v + 0.5 * track.size[1], track.size[0], height_m, depth, camera)

@@ -128,19 +128,25 @@ def test_a_lost_track_counts_as_hidden_on_the_median_of_its_last_ratios(
     assert _lost(()).covered(off)                                 # the test off: every lost track
 
 
-def test_coasted_cover_needs_images_and_motion(default_config: Config) -> None:
-    """From a coasted image track and its foot point: the ratio with the image pair, NaN
-    without it or at a standstill."""
-    prev, cur = wall_pair(10.0)
+def coasted_at(u: float, v: float) -> tuple[ImageTrack, EgoMotion, SensorSample]:
+    """A coasted 4 x 8 px image track centred at (u, v), the camera driving straight ahead
+    (epipole at the principal point) at ``STEP_M`` per frame, and its CAN sample."""
     x = np.zeros((2, 3))
-    x[0, 0], x[1, 0] = 445.0, 330.0
+    x[0, 0], x[1, 0] = u, v
     tr = ImageTrack(uid=1, id=1, x=x, P=np.zeros((2, 3, 3)), size=(4.0, 8.0), age=10, misses=0,
                     cluster=None, probability=0.6)
     ego = EgoMotion(rotation=np.zeros(3), translation_dir=np.array([0.0, 0.0, -1.0]),
                     epipole_px=(CAM.cx, CAM.cy), prior_rotation=np.zeros(3),
                     prior_translation_dir=np.array([0.0, 0.0, -1.0]), prior_epipole_px=None,
                     inliers=100, confident=True)
-    sensors = SensorSample(t=0.0, speed_m_s=STEP_M * 30.0, yaw_rate_rad_s=0.0)
+    return tr, ego, SensorSample(t=0.0, speed_m_s=STEP_M * 30.0, yaw_rate_rad_s=0.0)
+
+
+def test_coasted_cover_needs_images_and_motion(default_config: Config) -> None:
+    """From a coasted image track and its foot point: the ratio with the image pair, NaN
+    without it or at a standstill."""
+    prev, cur = wall_pair(10.0)
+    tr, ego, sensors = coasted_at(445.0, 330.0)
     foot = np.array([1.0, 1.2, 15.0])
     ratio = coasted_cover(tr, foot, (prev, cur), ego, sensors, 1.0 / 30.0, default_config.flow, CAM)
     assert ratio == pytest.approx(15.4 / 10.4, rel=0.1)
@@ -224,15 +230,7 @@ def test_coasted_course_from_a_coasted_track(default_config: Config) -> None:
     the head band 255-295) and its foot point: the count with the image pair; NaN without the
     pair, at a standstill, or without a known height."""
     prev, cur = head_pair(HEAD)
-    x = np.zeros((2, 3))
-    x[0, 0], x[1, 0] = 445.0, 326.0
-    tr = ImageTrack(uid=1, id=1, x=x, P=np.zeros((2, 3, 3)), size=(4.0, 8.0), age=10, misses=0,
-                    cluster=None, probability=0.6)
-    ego = EgoMotion(rotation=np.zeros(3), translation_dir=np.array([0.0, 0.0, -1.0]),
-                    epipole_px=(CAM.cx, CAM.cy), prior_rotation=np.zeros(3),
-                    prior_translation_dir=np.array([0.0, 0.0, -1.0]), prior_epipole_px=None,
-                    inliers=100, confident=True)
-    sensors = SensorSample(t=0.0, speed_m_s=STEP_M * 30.0, yaw_rate_rad_s=0.0)
+    tr, ego, sensors = coasted_at(445.0, 326.0)
     foot = np.array([0.5, 1.2, OBJECT_M])
     args = (ego, sensors, 1.0 / 30.0, default_config.flow, CAM, 0.25)
     count, column = coasted_course(tr, foot, 1.0, (prev, cur), *args)

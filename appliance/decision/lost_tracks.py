@@ -62,10 +62,10 @@ class LostTrack:
         ``coast_course_points`` and ``coast_course_fraction`` of its highest median so far (a
         head seen closer covers more points), its head is seen keeping its bearing above the
         occluder. Once it was, and the median then falls below that, the track is off course
-        for good: what
-        showed of it stopped keeping its bearing (a pedestrian who stopped behind a parked
-        car), and its coasted state, which cannot see that, is no longer assessed. A track
-        whose head was never seen (an occluder taller than it) coasts as before."""
+        for good: what showed of it stopped keeping its bearing (a pedestrian who stopped
+        behind a parked car), and its coasted state, which cannot see that, is no longer
+        assessed. A track whose head was never seen (an occluder taller than it) coasts as
+        before."""
         frames = cfg.tracking.coast_cover_frames
         course = (*self.course[1 - frames:], count)
         last = np.asarray(course, dtype=np.float64)

@@ -119,15 +119,27 @@ def coasted_cover(track: ImageTrack, foot: FloatArray | None,
     """:func:`cover_ratio` in the probe box of a coasted track (``lost_tracks.coasted_track``)
     whose ground position is ``foot`` (camera frame, m); NaN when it cannot be measured (no
     images, standstill, speed unknown, the box out of the image)."""
+    motion = _coasted_motion(foot, images, ego, sensors, dt)
+    if images is None or motion is None:
+        return float("nan")
+    depth, R, t_m = motion
+    u, v = float(track.x[0, 0]), float(track.x[1, 0])
+    box = probe_box(u, v + 0.5 * track.size[1], track.size, depth, camera)
+    ratio, _ = cover_ratio(images[0], images[1], box, depth, R, t_m, camera, flow_cfg)
+    return ratio
+
+
+def _coasted_motion(foot: FloatArray | None,
+                    images: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None, ego: EgoMotion,
+                    sensors: SensorSample, dt: float) -> tuple[float, FloatArray, FloatArray] | None:
+    """The coasted object's camera depth (m) at its ground position ``foot`` (camera frame) and
+    the camera motion (R (3, 3), t_m (3,) m) since the previous frame; None without the image
+    pair, at a standstill, with the speed unknown or the object less than 0.5 m ahead."""
     speed = sensors.speed_m_s
     if images is None or foot is None or ego.standstill or not math.isfinite(speed) or foot[2] <= 0.5:
-        return float("nan")
-    u, v = float(track.x[0, 0]), float(track.x[1, 0])
-    box = probe_box(u, v + 0.5 * track.size[1], track.size, float(foot[2]), camera)
+        return None
     t_m = np.asarray(ego.translation_dir, dtype=np.float64) * speed * dt
-    ratio, _ = cover_ratio(images[0], images[1], box, float(foot[2]), euler_to_matrix(ego.rotation),
-                           t_m, camera, flow_cfg)
-    return ratio
+    return float(foot[2]), euler_to_matrix(ego.rotation), t_m
 
 
 def head_band(u: float, v_bottom: float, width_px: float, height_m: float, depth_m: float,
@@ -176,13 +188,10 @@ def coasted_course(track: ImageTrack, foot: FloatArray | None, height_m: float,
     (``lost_tracks.coasted_track``) ``height_m`` tall whose ground position is ``foot``
     (camera frame, m); NaN when it cannot be measured (no images, standstill, speed unknown,
     height unknown, the band out of the image)."""
-    speed = sensors.speed_m_s
-    if images is None or foot is None or ego.standstill or not math.isfinite(speed) \
-            or foot[2] <= 0.5 or height_m <= 0.0:
+    motion = _coasted_motion(foot, images, ego, sensors, dt)
+    if images is None or motion is None or height_m <= 0.0:
         return float("nan"), float("nan")
-    depth = float(foot[2])
+    depth, R, t_m = motion
     u, v = float(track.x[0, 0]), float(track.x[1, 0])
     box = head_band(u, v + 0.5 * track.size[1], track.size[0], height_m, depth, camera)
-    t_m = np.asarray(ego.translation_dir, dtype=np.float64) * speed * dt
-    return course_points(images[0], images[1], box, depth, euler_to_matrix(ego.rotation), t_m,
-                         camera, flow_cfg, low_ratio)
+    return course_points(images[0], images[1], box, depth, R, t_m, camera, flow_cfg, low_ratio)

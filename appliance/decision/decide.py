@@ -490,14 +490,14 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
         seen: list[LostTrack] = []
         for lt in lost:
             coasted = coasted_track(lt, t, pose, cfg, camera)
+            foot = coasted_foot(lt, pose)
             if coasted is not None and cfg.tracking.coast_cover_ratio > 0.0:
-                ratio = coasted_cover(coasted[0], coasted_foot(lt, pose), images, ego, sensors, dt,
-                                      cfg.flow, camera)
+                ratio = coasted_cover(coasted[0], foot, images, ego, sensors, dt, cfg.flow, camera)
                 lt = replace(lt, cover=(*lt.cover[1 - cfg.tracking.coast_cover_frames:], ratio))
             if coasted is not None and cfg.tracking.coast_course_points > 0.0 and not lt.off_course:
-                count, column = coasted_course(coasted[0], coasted_foot(lt, pose),
-                                               lt.cues.peak_height_m, images, ego, sensors, dt,
-                                               cfg.flow, camera, cfg.tracking.coast_course_ratio)
+                count, column = coasted_course(coasted[0], foot, lt.cues.peak_height_m, images, ego,
+                                               sensors, dt, cfg.flow, camera,
+                                               cfg.tracking.coast_course_ratio)
                 lt = lt.with_course(count, cfg)
                 g, std_px = lt.cues.ground, cfg.tracking.coast_bearing_std_px
                 if g is not None and lt.seen_on_course and not lt.off_course and std_px > 0.0 \

@@ -275,6 +275,26 @@ def lead_car_driving_away(v: Vehicle) -> Plan:
     )
 
 
+def lead_car_braking(v: Vehicle) -> Plan:
+    """Rear-end course as Euro NCAP CCRb (ego and lead car at 50 km/h, 12 m apart in the same
+    lane; the lead brakes at 2 m/s^2 towards a standstill); the ego does not brake and hits it
+    about 3.5 s after the brake onset. The closing speed grows all the way: a time to collision
+    from the constant closing speed of the moment is always too long."""
+    v0, decel, gap, t_brake = 50 * KMH, 2.0, 12.0, -3.0
+    x0 = v.front + gap + SIZES["car"][0] / 2  # lead's centre at tau = t_brake, relative to ego
+    t_stop = v0 / decel
+    taus = np.concatenate([[-30.0], np.arange(0.0, t_stop, 0.1), [t_stop, t_stop + 60.0]])
+    t = np.minimum(taus, t_stop)
+    x = x0 + v0 * (t_brake + t) - 0.5 * decel * np.maximum(t, 0.0) ** 2
+    taus = taus + t_brake
+    lead = Trajectory(tuple((float(tt), float(xx), 0.0) for tt, xx in zip(taus, x)))
+    return Plan(
+        EgoPlan(speed=((0.0, v0),)),
+        duration_s=8.0,
+        movers=(MoverPlan("car", lead, "lead car braking at 2 m/s^2"),),
+    )
+
+
 def _passing(v: Vehicle, in_front: bool) -> Plan:
     ego_speed, T = 30 * KMH, 7.0
     ego = EgoPlan(speed=((0.0, ego_speed),))
@@ -334,6 +354,11 @@ SCENARIOS: dict[str, Scenario] = {
             cyclist_crossing_intersection,
             True,
             "collision: cyclist from the left at an intersection, 30 vs 15 km/h, PTU pans left",
+        ),
+        _scenario(
+            lead_car_braking,
+            True,
+            "collision: lead car 12 m ahead brakes at 2 m/s^2 from 50 km/h (CCRb), ego does not",
         ),
         _scenario(
             pedestrian_stops_at_kerb,

@@ -33,6 +33,10 @@ GOLDEN = {
     # the twin of the nearside drive: the pedestrian stops behind the parked car. Coasted on its
     # last velocity it got a false level 2 (500 static-pool corners); the head test ends that
     "pedestrian_stops_behind_parked_car-2": ("pedestrian_stops_behind_parked_car", 2, 8.0),
+    # a lead car braking at 2 m/s^2 (CCRb): at the epipole, with eq. 20 probabilities of
+    # 0.5-0.7 and a closing speed that grows all the way; warned only with the fast-mover rule
+    # and the 3-D state's acceleration
+    "lead_car_braking-0": ("lead_car_braking", 0, 6.0),
 }
 # Tolerances of the comparison: the same warning changes in the same order, each within
 # FRAME_TOLERANCE frames and TTC_TOLERANCE_S of the reference. They absorb floating-point

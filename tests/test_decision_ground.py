@@ -442,3 +442,116 @@ def test_a_bearing_corrects_only_across_the_line_of_sight() -> None:
     assert np.all(np.linalg.eigvalsh(out.P) > 0.0)
     assert float(n @ out.P[:2, :2] @ n) < float(n @ g.P[:2, :2] @ n)
     assert bearing_update(g, math.nan, cam, 0.003) is g
+
+
+def _follow_braking_car(cfg: Config, seed: int = 0) -> tuple[GroundTrack, float]:
+    """Ego at 50 km/h behind a car 16 m ahead (rear axle frame) at the same speed, which brakes
+    at 2 m/s^2 from t = 0.5 s; contacts every 1/30 s with 0.3 m noise in range, 1.5 s of
+    braking; the state starts at the car's speed +- 1 m/s (as from a track followed for a
+    while). Returns the state and the car's true velocity over ground."""
+    rng = np.random.default_rng(seed)
+    dt, v0, decel = 1 / 30, 50 / 3.6, 2.0
+    R = np.diag([0.3, 0.05]) ** 2
+    g = None
+    for k in range(61):
+        t = k * dt
+        tb = max(t - 0.5, 0.0)
+        gap = 16.0 - 0.5 * decel * tb * tb  # ego and car at v0 until the car brakes
+        z = np.array([gap, 0.0]) + rng.normal(0.0, [0.3, 0.05])
+        contact = GroundContact(z=z, R=R)
+        g = ground_init(contact, t, cfg, (np.array([v0, 0.0]), np.eye(2))) if g is None \
+            else ground_update(
+            ground_predict(g, dt, SensorSample(t, v0, 0.0), cfg), contact, t)
+    assert g is not None
+    return g, v0 - decel * (60 * dt - 0.5)
+
+
+def test_acceleration_state_follows_a_braking_car(default_config: Config) -> None:
+    """With the acceleration model (Singer) the state's velocity keeps up with a car braking at
+    2 m/s^2 and its acceleration says so; the constant-velocity state lags behind (its
+    velocity still near the speed before braking)."""
+    ca_cfg = default_config.with_overrides({"ground": {"accel_std_m_s2": 3.0,
+                                                       "range_rate_from_scale": False}}).ground
+    cv_cfg = default_config.with_overrides({"ground": {"accel_std_m_s2": 0.0}}).ground
+    lags_ca, lags_cv, accels = [], [], []
+    for seed in range(20):
+        ca, v_true = _follow_braking_car(ca_cfg, seed)
+        cv, _ = _follow_braking_car(cv_cfg, seed)
+        assert len(ca.x) == 6 and len(cv.x) == 4
+        lags_ca.append(abs(float(ca.velocity[0]) - v_true))
+        lags_cv.append(abs(float(cv.velocity[0]) - v_true))
+        accels.append(float(ca.acceleration[0]))
+    assert np.median(lags_ca) < 0.6 * np.median(lags_cv)
+    assert -3.0 < np.median(accels) < -1.0
+
+
+def test_coasting_forgets_the_acceleration(default_config: Config) -> None:
+    """Without contacts (``steady``) the state moves at constant velocity: an acceleration
+    cannot be followed while the object is hidden."""
+    cfg = default_config.with_overrides({"ground": {"accel_std_m_s2": 3.0}}).ground
+    P = np.diag([0.2, 0.2, 0.3, 0.3, 0.5, 0.5]) ** 2
+    g = GroundTrack(np.array([20.0, -8.0, 0.0, 8.0, 0.0, 1.5]), P, 0.0, 30)  # a crossing car
+    sensors = SensorSample(0.0, 10.0, 0.0)
+    coasted, followed = g, g
+    for _ in range(30):
+        coasted = ground_predict(coasted, 1 / 30, sensors, cfg, steady=True)
+        followed = ground_predict(followed, 1 / 30, sensors, cfg)
+    np.testing.assert_allclose(coasted.velocity, [0.0, 8.0], atol=1e-9)
+    np.testing.assert_allclose(coasted.position, [10.0, 0.0], atol=1e-6)
+    np.testing.assert_allclose(coasted.acceleration, 0.0)
+    np.testing.assert_allclose(coasted.P[4:, :4], 0.0)  # uncorrelated: no update moves it
+    assert coasted.P[4, 4] >= cfg.accel_std_m_s2 ** 2
+    assert followed.velocity[1] > 8.8  # the acceleration, decaying over 2 s, went on
+
+
+def test_slow_objects_are_followed_at_constant_velocity(default_config: Config) -> None:
+    """Below ``accel_min_speed_m_s`` (a pedestrian) the acceleration is not estimated: the
+    state is updated exactly as the constant-velocity one (its range noise would otherwise
+    come out as acceleration and make its velocity noisier)."""
+    ca = default_config.with_overrides({"ground": {"accel_std_m_s2": 3.0}}).ground
+    cv = default_config.with_overrides({"ground": {"accel_std_m_s2": 0.0}}).ground
+    rng = np.random.default_rng(3)
+    R = np.diag([0.4, 0.1]) ** 2
+    sensors = SensorSample(0.0, 10.0, 0.0)
+    first = GroundContact(np.array([25.0, -4.0]), R)
+    prior = (np.array([0.0, 1.4]), np.eye(2) * 0.25)  # walking, as a crossing prior says
+    a, b = ground_init(first, 0.0, ca, prior), ground_init(first, 0.0, cv, prior)
+    for k in range(1, 40):
+        z = np.array([25.0 - 10.0 * k / 30, -4.0 + 1.4 * k / 30]) + rng.normal(0, [0.4, 0.1])
+        c = GroundContact(z, R)
+        a = ground_update(ground_predict(a, 1 / 30, sensors, ca), c, k / 30)
+        b = ground_update(ground_predict(b, 1 / 30, sensors, cv), c, k / 30)
+    np.testing.assert_allclose(a.x[:4], b.x, atol=1e-9)
+    np.testing.assert_allclose(a.P[:4, :4], b.P, atol=1e-9)
+    np.testing.assert_allclose(a.acceleration, 0.0)
+
+
+def test_braking_object_path_stops_and_meets_the_car_sooner(default_config: Config) -> None:
+    """A lead car (radius 0.9 m) 8 m ahead of the bumper, both at 13.9 m/s, braking at 2 m/s^2:
+    at constant velocity it never meets the car; with its deceleration kept it does when the
+    gap has closed (sqrt(2 gap / a) = 2.83 s). 20 m ahead braking at 6 m/s^2 it stops first
+    (2.32 s), and the ego vehicle covers the gap and its stopping distance at its own speed."""
+    mount, w = default_config.mount, default_config.warning
+    front, r = mount.vehicle_front_m, 0.9
+
+    def ttc(gap: float, accel: float) -> float | None:
+        return predict_path(np.array([front + gap + r, 0.0]), np.array([13.9, 0.0]), 13.9, 0.0,
+                            mount, w.corridor_margin_m, r, 6.0, accel=accel).ttc
+
+    assert ttc(8.0, 0.0) is None
+    assert ttc(8.0, -2.0) == pytest.approx(math.sqrt(2 * 8.0 / 2.0), abs=0.06)
+    hard = ttc(20.0, -6.0)
+    assert hard is not None and hard > 13.9 / 6.0
+    assert hard == pytest.approx((20.0 + 13.9 ** 2 / 12.0) / 13.9, abs=0.06)
+
+
+def test_significant_acceleration() -> None:
+    """Along the direction of travel, 0 when within ``sigmas`` std or without the model."""
+    from appliance.decision.threat import significant_acceleration
+
+    P6 = np.diag([0.1, 0.1, 0.2, 0.2, 0.5, 0.5]) ** 2
+    v = np.array([10.0, 0.0])
+    assert significant_acceleration(v, np.array([-2.0, 0.3]), P6, 2.0) == pytest.approx(-2.0)
+    assert significant_acceleration(v, np.array([-0.8, 0.0]), P6, 2.0) == 0.0
+    assert significant_acceleration(v, np.array([-2.0, 0.0]), np.eye(4), 2.0) == 0.0
+    assert significant_acceleration(np.zeros(2), np.array([-2.0, 0.0]), P6, 2.0) == 0.0

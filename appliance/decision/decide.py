@@ -76,6 +76,7 @@ from appliance.decision.threat import (
     outline_gap,
     predict_path,
     scale_lateral_miss,
+    significant_acceleration,
     significant_velocity,
 )
 from appliance.decision.track_cues import TrackCues
@@ -185,7 +186,8 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
     moved_hold = cues.moved_hold if cues else 0
     s = cues.scale if cues else None
     if g is not None:
-        g = ground_predict(g, dt, sensors, cfg.ground)
+        # no contact in the frame before: coasting, at constant velocity
+        g = ground_predict(g, dt, sensors, cfg.ground, steady=t - g.t_update > 1.5 * dt)
     if s is not None:
         s = scale_predict(s, dt, cfg.ground.scale_process_std)
     fresh = False
@@ -298,7 +300,7 @@ def moves_over_ground(g: GroundTrack, cfg: Config) -> bool:
     speed = float(np.hypot(v[0], v[1]))
     if g.updates < cfg.warning.moving_min_frames or speed < cfg.warning.min_speed_m_s:
         return False
-    Pv = g.P[2:, 2:]
+    Pv = g.P[2:4, 2:4]
     try:
         m2 = float(v @ np.linalg.solve(Pv, v))
     except np.linalg.LinAlgError:
@@ -385,9 +387,13 @@ def assess(track: ImageTrack, cues: TrackCues, sensors: SensorSample, cfg: Confi
         depth = float(pos[0] - mount.x_m)
         rng = float(np.hypot(pos[0] - mount.x_m, pos[1] - mount.y_m))
         radius = object_radius(track.size[0], rng, camera.fx)
-        base = predict_path(pos, vel, speed, yaw, mount, w.corridor_margin_m, radius, w.horizon_s)
+        # braking or speeding up, where the state estimates it (ground.accel_min_speed_m_s)
+        acc = significant_acceleration(vel, g.acceleration, g.P, w.velocity_significance_sigmas)
+        base = predict_path(pos, vel, speed, yaw, mount, w.corridor_margin_m, radius, w.horizon_s,
+                            acc)
         wide = predict_path(pos, vel, speed, yaw, mount,
-                            w.corridor_margin_m + w.corridor_hysteresis_m, radius, w.horizon_s)
+                            w.corridor_margin_m + w.corridor_hysteresis_m, radius, w.horizon_s,
+                            acc)
         on_course, on_wide = base.ttc is not None, wide.ttc is not None
         ttc_g = base.ttc if base.ttc is not None else wide.ttc
         if ttc_g is not None:
@@ -433,8 +439,10 @@ def assess(track: ImageTrack, cues: TrackCues, sensors: SensorSample, cfg: Confi
         if track.cluster is not None:
             height = (report.bbox[3] - report.bbox[1]) * depth / camera.fy
         upright = max(height or 0.0, cues.peak_height_m) >= w.min_height_m
+    fast = g is not None and cues.moved and w.fast_mover_m_s > 0.0 \
+        and float(np.hypot(*g.velocity)) >= w.fast_mover_m_s
     return TrackThreat(report=report, on_course=on_course, on_course_wide=on_wide,
-                       moving=cues.moved, upright=upright, height_m=height)
+                       moving=cues.moved, upright=upright, height_m=height, fast=fast)
 
 
 def decide(state: DecisionState, frame_index: int, t: float, particles: ParticleSet,

@@ -155,9 +155,10 @@ def ground_contact(camera: PinholeCamera, uv: tuple[float, float], pose: CameraP
 @dataclass(frozen=True)
 class GroundTrack:
     """State ``[x, y, vx, vy]`` (m, m/s): position in the current vehicle frame and the
-    object's velocity over ground expressed in it; P (4, 4). t_update: time of the last
-    ground contact (s); updates: how many contacts it has taken; rejected: outliers in a
-    row."""
+    object's velocity over ground expressed in it; P (4, 4). With the acceleration model
+    (``ground.accel_std_m_s2`` > 0) the state is ``[x, y, vx, vy, ax, ay]`` and P (6, 6): the
+    acceleration over ground too (m/s^2). t_update: time of the last ground contact (s);
+    updates: how many contacts it has taken; rejected: outliers in a row."""
 
     x: FloatArray
     P: FloatArray
@@ -171,23 +172,38 @@ class GroundTrack:
 
     @property
     def velocity(self) -> FloatArray:
-        return self.x[2:]
+        return self.x[2:4]
+
+    @property
+    def acceleration(self) -> FloatArray:
+        """Acceleration over ground (2,) m/s^2; 0 without the acceleration model."""
+        return self.x[4:6] if len(self.x) == 6 else np.zeros(2)
 
 
-H_POSITION: FloatArray = np.hstack([np.eye(2), np.zeros((2, 2))])
+def h_position(n: int) -> FloatArray:
+    """Measurement matrix (2, n) of the position."""
+    return np.hstack([np.eye(2), np.zeros((2, n - 2))])
+
+
+H_POSITION: FloatArray = h_position(4)
 
 
 def ground_init(contact: GroundContact, t: float, cfg: GroundConfig,
                 prior: tuple[FloatArray, FloatArray] | None = None) -> GroundTrack:
     """A new 3-D state at ``contact``; velocity from ``prior`` (mean (2,), covariance
-    (2, 2), m/s over ground) or 0 +- ``initial_velocity_std_m_s``."""
-    P = np.zeros((4, 4))
+    (2, 2), m/s over ground) or 0 +- ``initial_velocity_std_m_s``; with the acceleration
+    model, acceleration 0 +- ``accel_std_m_s2``."""
+    n = 6 if cfg.accel_std_m_s2 > 0.0 else 4
+    P = np.zeros((n, n))
     P[:2, :2] = contact.R
     v = np.zeros(2)
-    P[2:, 2:] = np.eye(2) * cfg.initial_velocity_std_m_s ** 2
+    P[2:4, 2:4] = np.eye(2) * cfg.initial_velocity_std_m_s ** 2
     if prior is not None and np.all(np.isfinite(prior[0])) and np.all(np.isfinite(prior[1])):
-        v, P[2:, 2:] = np.asarray(prior[0], float), np.asarray(prior[1], float)
-    return GroundTrack(x=np.concatenate([contact.z, v]), P=P, t_update=t, updates=1)
+        v, P[2:4, 2:4] = np.asarray(prior[0], float), np.asarray(prior[1], float)
+    if n == 6:
+        P[4:, 4:] = np.eye(2) * cfg.accel_std_m_s2 ** 2
+    return GroundTrack(x=np.concatenate([contact.z, v, np.zeros(n - 4)]), P=P, t_update=t,
+                       updates=1)
 
 
 @dataclass(frozen=True)
@@ -242,7 +258,7 @@ def velocity_update(g: GroundTrack, direction: FloatArray, value: float, std: fl
                     ) -> GroundTrack:
     """Kalman update of the velocity component along the unit ``direction`` (2,) with a
     measurement ``value`` +- ``std`` m/s; position, time and counts unchanged."""
-    H = np.concatenate([np.zeros(2), direction]).reshape(1, 4)
+    H = np.concatenate([np.zeros(2), direction, np.zeros(len(g.x) - 4)]).reshape(1, -1)
     x, P = update(g.x, g.P, np.array([value]), np.array([[std ** 2]]), H)
     return GroundTrack(x=x, P=P, t_update=g.t_update, updates=g.updates, rejected=g.rejected)
 
@@ -263,7 +279,7 @@ def range_rate_update(g: GroundTrack, rate_1_s: float, rate_var: float, pose: Ca
     d = axis / n
     value, var = speed * float(d[0]) - rate_1_s * z, rate_var * z * z
     innovation = value - float(d @ g.velocity)
-    if innovation ** 2 > gate_sigmas ** 2 * (float(d @ g.P[2:, 2:] @ d) + var):
+    if innovation ** 2 > gate_sigmas ** 2 * (float(d @ g.P[2:4, 2:4] @ d) + var):
         return g
     return velocity_update(g, d, value, math.sqrt(var))
 
@@ -300,14 +316,14 @@ def bearing_update(g: GroundTrack, azimuth: float, camera_xy: tuple[float, float
     if not math.isfinite(azimuth) or r < 0.5 or std_rad <= 0.0:
         return g
     n = np.array([-math.sin(azimuth), math.cos(azimuth)])
-    T = np.zeros((2, 4))
-    T[0, :2], T[1, 2:] = n, n                  # across-ray position and velocity
+    T = np.zeros((2, len(g.x)))
+    T[0, :2], T[1, 2:4] = n, n                 # across-ray position and velocity
     H = T[:1]
     S = float((H @ g.P @ H.T)[0, 0]) + (r * std_rad) ** 2
-    K = T.T @ (T @ g.P @ H.T) / S              # (4, 1): the gain of the across-ray components
+    K = T.T @ (T @ g.P @ H.T) / S              # (n, 1): the gain of the across-ray components
     innovation = -float(n @ (g.x[:2] - c))
     x = g.x + K[:, 0] * innovation
-    A = np.eye(4) - K @ H
+    A = np.eye(len(g.x)) - K @ H
     P = A @ g.P @ A.T + (r * std_rad) ** 2 * (K @ K.T)
     return GroundTrack(x=x, P=P, t_update=g.t_update, updates=g.updates, rejected=g.rejected)
 
@@ -322,24 +338,56 @@ def ego_step(speed: float, yaw_rate: float, dt: float) -> tuple[FloatArray, Floa
     return Rt, d
 
 
-def ground_predict(g: GroundTrack, dt: float, sensors: SensorSample, cfg: GroundConfig
-                   ) -> GroundTrack:
+def ground_predict(g: GroundTrack, dt: float, sensors: SensorSample, cfg: GroundConfig,
+                   steady: bool = False) -> GroundTrack:
     """Move the state by ``dt`` s: the object at constant velocity over ground, the frame with
-    the ego vehicle (CAN speed and yaw rate): p' = Rt (p + v dt - d), v' = Rt v."""
+    the ego vehicle (CAN speed and yaw rate): p' = Rt (p + v dt - d), v' = Rt v.
+
+    With the acceleration model (6 states) the acceleration over ground is a first-order
+    Markov process (Singer): p' = Rt (p + v dt + a dt^2 / 2 - d), v' = Rt (v + a dt),
+    a' = Rt phi a with phi = exp(-dt / accel_time_constant_s), driven by white noise of
+    variance accel_std^2 (1 - phi^2) so that the acceleration's spread stays accel_std. The
+    velocity keeps its own process noise (``process_accel_m_s2``), so a walking pedestrian
+    is followed as before and the acceleration takes up what lasts: a braking car.
+
+    ``steady``: the state has had no ground contact since the frame before (coasting: hidden,
+    or its contact unusable), or it moves slower than ``accel_min_speed_m_s``; it forgets its
+    acceleration (0 +- accel_std, uncorrelated) and moves at constant velocity. An acceleration cannot be followed without contacts, and
+    integrated over a second of coasting a small one moves a pedestrian off the corridor."""
     if dt <= 0.0:
         return g
+    # the acceleration of a slow object (a pedestrian) is not estimated: it would mostly be
+    # its ground contacts' noise, and make its velocity noisier
+    steady = steady or float(np.hypot(g.x[2], g.x[3])) < cfg.accel_min_speed_m_s
+    if steady and len(g.x) == 6:
+        x0, P0 = g.x.copy(), g.P.copy()
+        x0[4:] = 0.0
+        P0[4:, :] = 0.0
+        P0[:, 4:] = 0.0
+        P0[4:, 4:] = np.eye(2) * cfg.accel_std_m_s2 ** 2
+        g = GroundTrack(x=x0, P=P0, t_update=g.t_update, updates=g.updates, rejected=g.rejected)
     speed = sensors.speed_m_s if math.isfinite(sensors.speed_m_s) else 0.0
     yaw = sensors.yaw_rate_rad_s if math.isfinite(sensors.yaw_rate_rad_s) else 0.0
     Rt, d = ego_step(speed, yaw, dt)
-    F = np.zeros((4, 4))
+    n = len(g.x)
+    F = np.zeros((n, n))
     F[:2, :2] = Rt
-    F[:2, 2:] = Rt * dt
-    F[2:, 2:] = Rt
-    B = np.vstack([-Rt, np.zeros((2, 2))])
+    F[:2, 2:4] = Rt * dt
+    F[2:4, 2:4] = Rt
+    B = np.vstack([-Rt, np.zeros((n - 2, 2))])
     q = Q_discrete_white_noise(dim=2, dt=dt, var=cfg.process_accel_m_s2 ** 2)
-    Q = np.zeros((4, 4))
+    Q = np.zeros((n, n))
     for i in range(2):
         Q[np.ix_([i, i + 2], [i, i + 2])] = q
+    if n == 6 and not steady:
+        phi = math.exp(-dt / cfg.accel_time_constant_s) if cfg.accel_time_constant_s > 0.0 \
+            else 0.0
+        F[:2, 4:] = Rt * (0.5 * dt * dt)
+        F[2:4, 4:] = Rt * dt
+        F[4:, 4:] = Rt * phi
+        Q[4:, 4:] += np.eye(2) * cfg.accel_std_m_s2 ** 2 * (1.0 - phi * phi)
+    elif n == 6:
+        F[4:, 4:] = np.eye(2)  # forgotten above: 0 +- accel_std, kept so until a contact
     if not sensors.can_valid:
         # ego motion unknown: the displacement may be wrong by several m/s
         Q[:2, :2] += np.eye(2) * (3.0 * dt) ** 2
@@ -351,7 +399,7 @@ def ground_predict(g: GroundTrack, dt: float, sensors: SensorSample, cfg: Ground
 
 
 def ground_update(g: GroundTrack, contact: GroundContact, t: float) -> GroundTrack:
-    x, P = update(g.x, g.P, contact.z, contact.R, H_POSITION)
+    x, P = update(g.x, g.P, contact.z, contact.R, h_position(len(g.x)))
     return GroundTrack(x=x, P=P, t_update=t, updates=g.updates + 1)
 
 

@@ -119,7 +119,7 @@ def coast_lost(previous: TrackerState, previous_cues: dict[int, TrackCues],
     for lt in previous_lost + dropped:
         g = lt.cues.ground
         assert g is not None
-        g = ground_predict(g, dt, sensors, ground_cfg)
+        g = ground_predict(g, dt, sensors, ground_cfg, steady=True)
         if t - g.t_update <= cfg.tracking.reacquire_s:
             out.append(replace(lt, cues=replace(lt.cues, ground=g)))
     return tuple(out)

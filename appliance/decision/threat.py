@@ -69,18 +69,33 @@ def outline_gap(q: FloatArray, mount: MountConfig, margin: float) -> FloatArray:
 
 def predict_path(position: NDArray[np.floating], velocity: NDArray[np.floating], speed: float,
                  yaw_rate: float, mount: MountConfig, margin: float, radius: float,
-                 horizon_s: float) -> PathPrediction:
+                 horizon_s: float, accel: float = 0.0) -> PathPrediction:
     """Object at ``position`` (m) moving at ``velocity`` (m/s over ground), both in the current
-    vehicle frame; ego along an arc (speed m/s, yaw rate rad/s); vectorised over time."""
+    vehicle frame; ego along an arc (speed m/s, yaw rate rad/s); vectorised over time.
+
+    ``accel`` (m/s^2): the object's acceleration along its direction of travel, kept
+    constant; a braking object (accel < 0) stops and stays (it does not reverse)."""
     tau = np.arange(0.0, horizon_s + 1e-9, STEP_S)
+    v = np.asarray(velocity, dtype=np.float64)
+    v_abs = float(np.hypot(v[0], v[1]))
+    if accel != 0.0 and v_abs > 1e-6:
+        t_move = min(-v_abs / accel, horizon_s) if accel < 0.0 else horizon_s
+        tm = np.minimum(tau, t_move)
+        travel = v_abs * tm + 0.5 * accel * tm * tm  # m along the direction of travel
+        along = v / v_abs
+        px0 = position[0] + along[0] * travel
+        py0 = position[1] + along[1] * travel
+    else:
+        px0 = position[0] + v[0] * tau
+        py0 = position[1] + v[1] * tau
     psi = yaw_rate * tau
     if abs(yaw_rate) > 1e-4:
         ex = speed * np.sin(psi) / yaw_rate
         ey = speed * (1.0 - np.cos(psi)) / yaw_rate
     else:
         ex, ey = speed * tau, np.zeros_like(tau)
-    px = position[0] + velocity[0] * tau - ex
-    py = position[1] + velocity[1] * tau - ey
+    px = px0 - ex
+    py = py0 - ey
     c, s = np.cos(psi), np.sin(psi)
     q = np.stack([c * px + s * py, -s * px + c * py], axis=-1)
     gap = outline_gap(q, mount, margin) - radius
@@ -143,6 +158,22 @@ def scale_lateral_miss(depth: float, bearing: float, bearing_rate: float, k: flo
 def object_radius(box_width_px: float, range_m: float, fx: float) -> float:
     """Half the object's lateral extent (m) from its box width at its range, in [0.2, 2.5] m."""
     return float(min(max(0.5 * box_width_px * range_m / fx, 0.2), 2.5))
+
+
+def significant_acceleration(velocity: NDArray[np.floating], acceleration: NDArray[np.floating],
+                             P: NDArray[np.floating], sigmas: float) -> float:
+    """The acceleration (m/s^2) along the direction of ``velocity`` (2,) when it is at least
+    ``sigmas`` times its std (``P`` (6, 6) of ``[x, y, vx, vy, ax, ay]``), else 0 (predicted
+    at constant velocity). 0 for a state without acceleration (P (4, 4)) or standing still."""
+    P = np.asarray(P, dtype=np.float64)
+    v = np.asarray(velocity, dtype=np.float64)
+    speed = float(np.hypot(v[0], v[1]))
+    if P.shape[0] < 6 or speed < 1e-6:
+        return 0.0
+    d = v / speed
+    a = float(d @ np.asarray(acceleration, dtype=np.float64))
+    std = math.sqrt(max(float(d @ P[4:6, 4:6] @ d), 0.0))
+    return a if abs(a) >= sigmas * std else 0.0
 
 
 def significant_velocity(velocity: NDArray[np.floating], P: NDArray[np.floating],

@@ -12,7 +12,8 @@ predicted path meets the ego corridor and with what TTC. From that:
   motion (eq. 20, smoothed) of at least ``min_probability``: false detections on
   road texture are weak and patchy, real movers are not; and, with a ground contact,
   only for a box at least ``min_height_m`` tall at that depth (a road user, not a strip
-  of road).
+  of road). A track moving over ground at ``fast_mover_m_s`` or more (a car, a cyclist)
+  needs no ``min_probability``: a lead car at the epipole shows little independent flow.
 * **Minimum persistence.** A track raises a level only after indicating it in
   ``min_persistence_frames`` consecutive frames: no single-frame warnings. The
   indication looks ahead by the window's length (threshold + (frames - 1) * frame
@@ -52,6 +53,9 @@ class TrackThreat:
     assessed from its coasted 3-D state (``coast_min_probability`` instead of ``min_probability``).
     evidence: the probability tested against ``min_probability`` when it is not the track's own
     (``pool_covered_tracks``: the highest of the tracks its box covers), else None.
+    fast: its 3-D state moves over ground at least ``fast_mover_m_s``: it needs no
+    ``min_probability`` (a lead car straight ahead sits at the epipole, where eq. 6 cannot
+    see it, and a braking one looks more and more like the static scene).
     """
 
     report: TrackReport
@@ -62,6 +66,7 @@ class TrackThreat:
     height_m: float | None = None
     evidence: float | None = None
     coasted: bool = False
+    fast: bool = False
 
     @property
     def ttc(self) -> float | None:
@@ -107,7 +112,8 @@ def _indicated(th: TrackThreat, threshold: float, wide: bool, hysteresis: float,
     if wide:
         return th.on_course_wide and ttc <= threshold + hysteresis
     p = th.report.probability if th.evidence is None else th.evidence
-    return th.moving and th.upright and th.on_course and ttc <= threshold and p >= min_probability
+    return th.moving and th.upright and th.on_course and ttc <= threshold \
+        and (p >= min_probability or th.fast)
 
 
 def warning_step(state: WarningState, threats: tuple[TrackThreat, ...], t: float, frame: int,

@@ -1,6 +1,6 @@
 """``collision-warning demo``: the main job on the embedded default, through the real drivers.
 
-Three simulated drives, two with a collision and one without, are written as drive
+Four simulated drives, three with a collision and one without, are written as drive
 recordings (kept under ``OUT/<scenario>/recording``, so they can be replayed and
 evaluated afterwards) and then played live, in real time: frames through the
 camera interface, vehicle CAN frames on a python-can bus (``vcan0`` where the
@@ -28,11 +28,13 @@ from appliance.recording import Recording, apply_meta
 from appliance.runtime.realtime_replay import Buses, play_live
 from appliance.sim.drive import simulate
 
-# (scenario, seed, duration s): two collision courses (the car with the PTU turned towards
-# the intersection), one that ends without collision
+# (scenario, seed, duration s): three collision courses (the car with the PTU turned towards
+# the intersection; the lead car braking, the classic forward collision), one that ends
+# without collision
 DRIVES = (
     ("car_crossing_intersection", 1, 6.0),
     ("pedestrian_crossing_nearside", 1, None),
+    ("lead_car_braking", 0, 6.0),
     ("pedestrian_stops_at_kerb", 1, 8.0),
 )
 

@@ -546,12 +546,18 @@ def test_braking_object_path_stops_and_meets_the_car_sooner(default_config: Conf
 
 
 def test_significant_acceleration() -> None:
-    """Along the direction of travel, 0 when within ``sigmas`` std or without the model."""
+    """Along the direction of travel: whole from ``sigmas`` std, 0 below ``sigmas - 1`` std,
+    scaled linearly in between (no jump of the TTC when it hovers there); 0 without the
+    model or standing still."""
     from appliance.decision.threat import significant_acceleration
 
     P6 = np.diag([0.1, 0.1, 0.2, 0.2, 0.5, 0.5]) ** 2
     v = np.array([10.0, 0.0])
     assert significant_acceleration(v, np.array([-2.0, 0.3]), P6, 2.0) == pytest.approx(-2.0)
-    assert significant_acceleration(v, np.array([-0.8, 0.0]), P6, 2.0) == 0.0
+    assert significant_acceleration(v, np.array([-1.0, 0.0]), P6, 2.0) == pytest.approx(-1.0)
+    assert significant_acceleration(v, np.array([-0.75, 0.0]), P6, 2.0) == pytest.approx(-0.375)
+    assert significant_acceleration(v, np.array([-0.4, 0.0]), P6, 2.0) == 0.0
+    a = [significant_acceleration(v, np.array([x, 0.0]), P6, 2.0) for x in np.linspace(-2, 0, 41)]
+    assert np.all(np.diff(a) >= -1e-12)  # monotonic: no jump as the estimate moves
     assert significant_acceleration(v, np.array([-2.0, 0.0]), np.eye(4), 2.0) == 0.0
     assert significant_acceleration(np.zeros(2), np.array([-2.0, 0.0]), P6, 2.0) == 0.0

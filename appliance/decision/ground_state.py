@@ -185,8 +185,6 @@ def h_position(n: int) -> FloatArray:
     return np.hstack([np.eye(2), np.zeros((2, n - 2))])
 
 
-H_POSITION: FloatArray = h_position(4)
-
 
 def ground_init(contact: GroundContact, t: float, cfg: GroundConfig,
                 prior: tuple[FloatArray, FloatArray] | None = None) -> GroundTrack:
@@ -352,8 +350,9 @@ def ground_predict(g: GroundTrack, dt: float, sensors: SensorSample, cfg: Ground
 
     ``steady``: the state has had no ground contact since the frame before (coasting: hidden,
     or its contact unusable), or it moves slower than ``accel_min_speed_m_s``; it forgets its
-    acceleration (0 +- accel_std, uncorrelated) and moves at constant velocity. An acceleration cannot be followed without contacts, and
-    integrated over a second of coasting a small one moves a pedestrian off the corridor."""
+    acceleration (0 +- accel_std, uncorrelated) and moves at constant velocity. An
+    acceleration cannot be followed without contacts, and integrated over a second of
+    coasting a small one moves a pedestrian off the corridor."""
     if dt <= 0.0:
         return g
     # the acceleration of a slow object (a pedestrian) is not estimated: it would mostly be

@@ -157,6 +157,26 @@ def test_weak_or_static_tracks_raise_no_level(default_config: Config) -> None:
     assert [e.level for e in events] == [2] and levels[-1] == 2
 
 
+def test_a_fast_mover_needs_no_eq20_probability(default_config: Config) -> None:
+    """A lead car at the epipole carries an eq. 20 probability of 0.5-0.7: a track moving over
+    ground at fast_mover_m_s or more (``fast``) raises its level anyway; a slow one with the
+    same probability does not, nor a fast one that is not moving, off course or flat."""
+    from dataclasses import replace
+
+    cfg = default_config.warning
+    report = replace(threat(1, 1.0).report, probability=0.55)
+    assert report.probability < cfg.min_probability
+    levels, events = run(cfg, [(TrackThreat(report, True, True, fast=True),)] * 10)
+    assert [e.level for e in events] == [2]
+    levels, events = run(cfg, [(TrackThreat(report, True, True),)] * 10)
+    assert events == [] and max(levels) == 0
+    fast = TrackThreat(report, True, True, fast=True)
+    for other in (replace(fast, moving=False), replace(fast, on_course=False, on_course_wide=False),
+                  replace(fast, upright=False)):
+        levels, events = run(cfg, [(other,)] * 10)
+        assert events == [] and max(levels) == 0, other
+
+
 def test_a_track_covering_another_passes_with_the_higher_probability(default_config: Config) -> None:
     """A near pedestrian split into a feet track (ground contact, TTC 1 s, eq. 20 probability
     0.5) and a head track above it (0.8, no contact): the feet track's outline covers the head

@@ -104,6 +104,24 @@ def test_lost_track_keeps_the_warning_until_its_contact_is_due(default_config: C
     assert events[-1].t <= last_seen_t + last_ttc + 2.0 / FPS
 
 
+def test_a_track_released_off_its_course_is_held_only_for_hold_s(default_config: Config) -> None:
+    """A hidden pedestrian whose head was seen to stop (``released``) no longer keeps a level
+    until its contact was due: the caution it raised ends after ``hold_s``. Not released, the
+    same track's level is held to its contact time."""
+    cfg = default_config.warning  # hold 0.5 s
+    frames: list[tuple[TrackThreat, ...]] = [(threat(7, 2.8 - k / FPS),) for k in range(6)]
+    frames += [()] * 90
+    _, held = run(cfg, frames)
+    state, events = WarningState(), []
+    for k, threats in enumerate(frames):
+        released = frozenset({7}) if k >= 6 else frozenset()
+        state, ev, _ = warning_step(state, threats, k / FPS, k, cfg, released=released)
+        events.extend(ev)
+    assert [e.level for e in held] == [1, 0] and [e.level for e in events] == [1, 0]
+    assert held[-1].t >= 5 / FPS + 2.8 - 5 / FPS - 1e-9  # held until the contact was due
+    assert events[-1].t == pytest.approx(events[0].t + cfg.hold_s, abs=1.5 / FPS)
+
+
 def test_highest_level_wins_and_events_name_the_track(default_config: Config) -> None:
     cfg = default_config.warning
     frames = [(threat(1, 2.8), threat(2, 1.5)) for _ in range(5)]

@@ -523,7 +523,9 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
         lost = tuple(seen)
     threats.sort(key=lambda th: th.report.id)
     warning, events, warned = warning_step(state.warning, tuple(threats), t, frame_index,
-                                           cfg.warning, frame_dt=dt)
+                                           cfg.warning, frame_dt=dt,
+                                           released=frozenset(lt.id for lt in lost
+                                                              if lt.off_course))
     new_state = DecisionState(prob=prob, tracker=tracker, cues=cues, warning=warning,
                               body_pitch=body_pitch, pose=pose, t=t, model=model, lost=lost,
                               odo=odo)

@@ -25,7 +25,9 @@ predicted path meets the ego corridor and with what TTC. From that:
   the warned track is lost, or its TTC becomes unknown (it left the image, went
   under the bonnet, lost its ground contact just before contact), the level is
   held until its last predicted contact time has passed (at least ``hold_s``):
-  a warning is never cleared because the object came too close to see.
+  a warning is never cleared because the object came too close to see. A hidden track
+  known to be off its course (its head seen to stop, ``released``) is held for ``hold_s``
+  only.
 
 The issued level is the highest over all tracks (ties: the track already
 warned about, then the smallest TTC). A state change -- level or warned track --
@@ -117,13 +119,17 @@ def _indicated(th: TrackThreat, threshold: float, wide: bool, hysteresis: float,
 
 
 def warning_step(state: WarningState, threats: tuple[TrackThreat, ...], t: float, frame: int,
-                 cfg: WarningConfig, frame_dt: float = 0.0
+                 cfg: WarningConfig, frame_dt: float = 0.0,
+                 released: frozenset[int] = frozenset()
                  ) -> tuple[WarningState, tuple[WarningEvent, ...], TrackReport | None]:
     """One frame: (new state, events of this frame, the report behind the issued level).
 
     frame_dt: the frame interval (s); the persistence window looks ahead by its own
     length, ``(min_persistence_frames - 1) * frame_dt``, so a steadily falling TTC is
     issued when it reaches the threshold rather than one window later.
+    released: ids of tracks known to be off their course (a hidden pedestrian whose head was
+    seen to stop, occlusion.py): a level they raised is not held until their contact is due,
+    only for ``hold_s``.
     """
     lookahead = max(cfg.min_persistence_frames - 1, 0) * max(frame_dt, 0.0)
     thresholds = {1: cfg.ttc_caution_s, 2: cfg.ttc_warning_s}
@@ -164,7 +170,8 @@ def warning_step(state: WarningState, threats: tuple[TrackThreat, ...], t: float
         held = t < state.since + cfg.hold_s
         warned = present.get(state.track) if state.track is not None else None
         unknown = warned is None or warned.ttc is None
-        if state.track is not None and unknown and state.last is not None:
+        if state.track is not None and unknown and state.last is not None \
+                and state.track not in released:
             due = state.last_seen + max(cfg.hold_s, state.last.ttc_s or 0.0)
             held = held or t < due
         if held:

@@ -99,10 +99,10 @@ def main(argv: list[str]) -> int:
 
         marks["start"] = rss_mb()
         stats, summary = play_live(
-            looped,
+            looped,  # type: ignore[arg-type]
             cfg,
             Path(tmp) / "run",
-            Buses.private_virtual(),  # type: ignore[arg-type]
+            Buses.private_virtual(),
             on_start=on_start,
         )
         marks["end"] = rss_mb()

@@ -138,7 +138,7 @@ def find_clusters(prob: NDArray[np.float32], scale: int, particles: ParticleSet,
     r = int(round(cfg.dilation_px / scale))
     if r > 0:
         kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
-        binary = cv2.dilate(binary, kernel)
+        binary = np.asarray(cv2.dilate(binary, kernel), dtype=np.uint8)
     n_labels, labels, stats, _ = cv2.connectedComponentsWithStats(binary, connectivity=8)
     if n_labels <= 1:
         return ()

@@ -125,8 +125,9 @@ def warp_by_rotation(prev: FloatMap, rotation: NDArray[np.floating], camera: Pin
     if not np.all(np.isfinite(H)):
         return prev
     rows, cols = prev.shape
-    return cv2.warpPerspective(prev, H, (cols, rows), flags=cv2.INTER_LINEAR,
-                               borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+    return np.asarray(cv2.warpPerspective(prev, H, (cols, rows), flags=cv2.INTER_LINEAR,
+                                          borderMode=cv2.BORDER_CONSTANT, borderValue=0.0),
+                      dtype=np.float32)
 
 
 def spatio_temporal_filter(prev: FloatMap | None, particles: ParticleSet,

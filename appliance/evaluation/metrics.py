@@ -189,7 +189,8 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
         if n >= MIN_ATTRIBUTED_FRAMES:
             owner[tid] = oid
 
-    objects_out = []
+    objects_out: list[dict[str, Any]] = []
+    delays: list[int | None] = []
     for o in movers:
         clipped = np.array([clip_box(b, width, height) for b in o.bbox]).reshape(-1, 4)
         tall = (clipped[:, 3] - clipped[:, 1]) >= MIN_HEIGHT_PX
@@ -204,6 +205,7 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
                  else max(first_det - first_eligible, 0))
         tracked = (float(np.mean([int(f) in match[o.id] for f in eligible]))
                    if len(eligible) else None)
+        delays.append(delay)
         objects_out.append({
             "id": o.id, "class": o.cls, "eligible_frames": int(len(eligible)),
             "first_eligible_frame": first_eligible, "first_detection_frame": first_det,
@@ -264,8 +266,8 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
         and ct is not None else (None, None, None, None)
 
     minutes = duration_s / 60.0
-    delays = [o["detection_delay_frames"] for o in objects_out]
-    worst_delay = None if not delays or any(d is None for d in delays) else max(delays)
+    known = [d for d in delays if d is not None]
+    worst_delay = None if not delays or len(known) < len(delays) else max(known)
     result: dict[str, Any] = {
         "scenario": truth.scenario,
         "collision": truth.collision,
@@ -361,7 +363,9 @@ def _last_window_errors(o: TruthObject, ct: float, match: dict[int, dict[int, Tr
             d_true = float(outline_gap(o.pos[i], mount, 0.0))
             if d_true >= 0.5:
                 dist_err.append(abs(tr.distance_m - d_true) / d_true)
-    cov = (lambda n: round(n / n_win, 3) if n_win else None)
+    def cov(n: int) -> float | None:
+        return round(n / n_win, 3) if n_win else None
+
     med_t, med_d = _median(ttc_err), _median(dist_err)
     return (None if med_t is None else round(med_t, 4), None if med_d is None else round(med_d, 4),
             cov(n_ttc), cov(n_dist))

@@ -31,7 +31,7 @@ def lineage_weight(likelihood: NDArray[np.floating], history: FloatArray) -> Flo
     if history.shape[1] == 0:
         return lk
     past = np.where(np.isnan(history), np.inf, history).min(axis=1)
-    return np.minimum(lk, past)
+    return np.asarray(np.minimum(lk, past), dtype=np.float64)
 
 
 def advance_history(history: FloatArray, likelihood: NDArray[np.floating],

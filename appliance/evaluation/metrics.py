@@ -152,6 +152,18 @@ def ground_speed(o: TruthObject, ego: dict[int, tuple[float, float]]) -> NDArray
     return out
 
 
+def eligible_mask(o: TruthObject, ego: dict[int, tuple[float, float]], width: int,
+                  height: int) -> NDArray[np.bool_]:
+    """(N,) the object's eligible frames (module docstring): at least 15 px tall inside the
+    image, at least half visible, moving over the ground. ``ego``: :func:`ego_motion`."""
+    clipped = np.array([clip_box(b, width, height) for b in o.bbox]).reshape(-1, 4)
+    tall = (clipped[:, 3] - clipped[:, 1]) >= MIN_HEIGHT_PX
+    wide = (clipped[:, 2] - clipped[:, 0]) > 0
+    moving = ~(ground_speed(o, ego) <= MIN_SPEED_M_S)          # NaN (unknown): counts as moving
+    mask: NDArray[np.bool_] = tall & wide & (o.visible >= MIN_VISIBLE) & moving
+    return mask
+
+
 def _median(values: list[float]) -> float | None:
     return float(np.median(values)) if values else None
 
@@ -192,12 +204,7 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
     objects_out: list[dict[str, Any]] = []
     delays: list[int | None] = []
     for o in movers:
-        clipped = np.array([clip_box(b, width, height) for b in o.bbox]).reshape(-1, 4)
-        tall = (clipped[:, 3] - clipped[:, 1]) >= MIN_HEIGHT_PX
-        wide = (clipped[:, 2] - clipped[:, 0]) > 0
-        speed = ground_speed(o, ego)
-        moving = ~(speed <= MIN_SPEED_M_S)          # NaN (unknown): counts as moving
-        eligible = o.frames[tall & wide & (o.visible >= MIN_VISIBLE) & moving]
+        eligible = o.frames[eligible_mask(o, ego, width, height)]
         matched = sorted(match[o.id])
         first_eligible = int(eligible[0]) if len(eligible) else None
         first_det = int(matched[0]) if matched else None
@@ -207,7 +214,7 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
                    if len(eligible) else None)
         delays.append(delay)
         objects_out.append({
-            "id": o.id, "class": o.cls, "eligible_frames": int(len(eligible)),
+            "id": o.id, "class": o.cls, "eligible_frames": len(eligible),
             "first_eligible_frame": first_eligible, "first_detection_frame": first_det,
             "detection_delay_frames": delay, "tracked_fraction": tracked,
             "track_ids": sorted(t for t, oid in owner.items() if oid == o.id),

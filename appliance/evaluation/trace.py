@@ -58,6 +58,12 @@ class TraceRow:
     level: int
 
 
+def _box(b: Any, digits: int = 1) -> Box:
+    """A box (4 numbers) as a tuple of floats rounded to ``digits``."""
+    u0, v0, u1, v1 = (round(float(x), digits) for x in b)
+    return (u0, v0, u1, v1)
+
+
 def _near(a: Box, b: Box, margin: float) -> bool:
     return (a[0] < b[2] + margin and a[2] > b[0] - margin and a[1] < b[3] + margin
             and a[3] > b[1] - margin)
@@ -72,15 +78,13 @@ def trace_row(frame: int, t: float, truth_box: Box, visible: float, eligible: bo
     r0, r1 = max(int(v0) // scale, 0), min(int(np.ceil(v1 / scale)), rows)
     c0, c1 = max(int(u0) // scale, 0), min(int(np.ceil(u1 / scale)), cols)
     p_max = float(p[r0:r1, c0:c1].max()) if r1 > r0 and c1 > c0 else 0.0
-    clusters = tuple((tuple(round(float(x), 1) for x in c.bbox), int(c.n),
-                      round(float(c.mean_probability), 2))
+    clusters = tuple((_box(c.bbox), int(c.n), round(float(c.mean_probability), 2))
                      for c in out.clusters if _near(c.bbox, truth_box, margin))
-    tracks = tuple((tr.id, tuple(round(float(x), 1) for x in tr.bbox),
-                    round(iou(tr.bbox, truth_box), 2), tr.distance_m, tr.ttc_s)
-                   for tr in out.tracks if _near(tr.bbox, truth_box, margin))
-    return TraceRow(frame=frame, t=round(t, 3), truth=tuple(round(float(x), 1) for x in truth_box),  # type: ignore[arg-type]
-                    visible=round(visible, 2), eligible=eligible, p_max=round(p_max, 2),
-                    clusters=clusters, tracks=tracks, level=out.warning_level)  # type: ignore[arg-type]
+    tracks = tuple((tr.id, _box(tr.bbox), round(iou(tr.bbox, truth_box), 2), tr.distance_m,
+                    tr.ttc_s) for tr in out.tracks if _near(tr.bbox, truth_box, margin))
+    return TraceRow(frame=frame, t=round(t, 3), truth=_box(truth_box), visible=round(visible, 2),
+                    eligible=eligible, p_max=round(p_max, 2), clusters=clusters, tracks=tracks,
+                    level=out.warning_level)
 
 
 def default_object(truth: Truth) -> TruthObject:
@@ -134,8 +138,8 @@ def run_trace(recording: str | Path, object_id: int | None = None,
         if i is None or not first <= frame.index <= last:
             return
         box = clip_box(obj.bbox[i], width, height)
-        rows.append(trace_row(frame.index, frame.t, tuple(float(x) for x in box),  # type: ignore[arg-type]
-                              float(obj.visible[i]), bool(elig[i]), decision))
+        rows.append(trace_row(frame.index, frame.t, _box(box, 3), float(obj.visible[i]),
+                              bool(elig[i]), decision))
 
     with tempfile.TemporaryDirectory() as tmp:
         replay(rec, cfg, Path(tmp) / "run", on_step=on_step)

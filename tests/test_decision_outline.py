@@ -14,9 +14,13 @@ import numpy as np
 import pytest
 
 from appliance.config import Config
+from appliance.decision.decide import closing_step
+from appliance.decision.ground_state import CameraPose, GroundTrack
 from appliance.decision.object_extent import extended, outline
 from appliance.decision.scale_ttc import measure_expansion
+from appliance.decision.track_cues import TrackCues
 from appliance.decision.tracking import ImageTrack
+from appliance.messages import SensorSample
 from appliance.vision.geometry import PinholeCamera
 
 CAM = PinholeCamera(640, 480, 700.0, 700.0, 319.5, 239.5)
@@ -168,3 +172,36 @@ def test_a_track_beyond_the_3d_range_is_outlined_at_its_roads_depth(default_conf
     assert outline_depth(track(CAM.cy - 20.0), TrackCues(), pose, CAM) is None
     no_cluster = replace(track(foot_v), cluster=None)
     assert outline_depth(no_cluster, None, pose, CAM) is None
+
+
+def test_the_expansion_is_the_closing_speed_not_the_ego_speed(default_config: Config) -> None:
+    """The outline expects the object to grow by what the camera closes on it: a lead car at
+    the ego's speed does not grow, and with the ego's travel alone (13.9 m/s, 10 m ahead: 4.6 %
+    a frame) its top rows look like another object's; a pedestrian crossing does grow by it."""
+    dt = 1.0 / 30.0
+    sensors = SensorSample(t=0.0, speed_m_s=13.9, yaw_rate_rad_s=0.0)
+    ahead = CameraPose((1.9, 0.0, 1.3), pitch=0.0, pan=0.0, tilt=0.0)
+
+    def cues(vx: float, vy: float) -> TrackCues:
+        return TrackCues(ground=GroundTrack(x=np.array([11.9, 0.0, vx, vy]), P=np.eye(4),
+                                            t_update=0.0, updates=10))
+
+    assert closing_step(None, sensors, ahead, dt, 5.0) == pytest.approx(13.9 * dt)
+    assert closing_step(cues(13.9, 0.0), sensors, ahead, dt, 5.0) == pytest.approx(0.0, abs=1e-12)
+    assert closing_step(cues(0.0, 1.4), sensors, ahead, dt, 5.0) == pytest.approx(13.9 * dt)
+    # panned 0.3 rad left: the car ahead at the ego's speed still does not close
+    panned = CameraPose((1.9, 0.0, 1.3), pitch=0.0, pan=0.3, tilt=0.0)
+    assert closing_step(cues(13.9, 0.0), sensors, panned, dt, 5.0) == pytest.approx(0.0, abs=1e-12)
+    # a car crossing to the left at 8 m/s: what it drives away along the axis is taken off; a
+    # pedestrian (below 5 m/s) counts as static (the ego's travel), its axial velocity being
+    # the least certain part of its state
+    assert closing_step(cues(0.0, 8.0), sensors, panned, dt, 5.0) == pytest.approx(
+        (13.9 * np.cos(0.3) - 8.0 * np.sin(0.3)) * dt, rel=1e-9)
+    assert closing_step(cues(0.0, 1.4), sensors, panned, dt, 5.0) == pytest.approx(13.9 * dt)
+
+    prev, cur = pair((1.0, 0.0), (3.0, 0.5))          # the lead car: no growth of its own
+    lead = closing_step(cues(13.9, 0.0), sensors, ahead, dt, 5.0) / DEPTH_M
+    static = closing_step(None, sensors, ahead, dt, 5.0) / DEPTH_M
+    assert outline(prev, cur, FEET, DEPTH_M, CAM, default_config.flow, lead).top == \
+        pytest.approx(OBJ[1], abs=8.0)
+    assert outline(prev, cur, FEET, DEPTH_M, CAM, default_config.flow, static).top > OBJ[1] + 30.0

@@ -240,14 +240,22 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
         # a border cuts the box along one axis: what enters or leaves the image there is no
         # expansion, so the scale change is fitted along the other axis only
         axes = tuple(a for a, cut in ((0, left or right), (1, bottom)) if not cut)
+        # the scale change of the outline's flows (a pedestrian's particles are a strip at its
+        # feet, its outline the whole of it); for a vehicle (a 3-D state at accel_min_speed_m_s
+        # or faster) the more precise of that and the cluster's: a lead car's particles cover
+        # its back, its outline's rows reach its roof's silhouette, whose edge moves in steps
+        moving = c.weights >= cfg.clustering.member_weight
+        m = measure_expansion(c.positions[moving], c.flows[moving], c.weights[moving],
+                              ego.rotation, camera, axes, cfg.flow.window_px)
         if cfg.ground.scale_from_outline and shape is not None \
                 and len(shape.positions) >= OUTLINE_MIN_POINTS:
-            m = measure_expansion(shape.positions, shape.flows, np.ones(len(shape.positions)),
-                                  ego.rotation, camera, axes, cfg.flow.window_px)
-        else:
-            moving = c.weights >= cfg.clustering.member_weight
-            m = measure_expansion(c.positions[moving], c.flows[moving], c.weights[moving],
-                                  ego.rotation, camera, axes, cfg.flow.window_px)
+            m_outline = measure_expansion(shape.positions, shape.flows,
+                                          np.ones(len(shape.positions)), ego.rotation, camera,
+                                          axes, cfg.flow.window_px)
+            vehicle = g is not None and float(np.hypot(*g.velocity)) >= \
+                cfg.ground.accel_min_speed_m_s
+            if m_outline is not None and (m is None or not vehicle or m_outline.var <= m.var):
+                m = m_outline
         if m is not None:
             s = scale_update(s, m, dt)
             # not before the scale cue itself is trusted (scale_ttc_min_frames): a new track's
@@ -306,6 +314,31 @@ def moves_over_ground(g: GroundTrack, cfg: Config) -> bool:
     except np.linalg.LinAlgError:
         return False
     return m2 >= cfg.warning.moving_sigmas ** 2
+
+
+def closing_step(cues: TrackCues | None, sensors: SensorSample, pose: CameraPose, dt: float,
+                 min_speed: float) -> float:
+    """How far (m) the camera closes on the track's object along its optical axis in ``dt``:
+    the ego vehicle's travel less the object's own along the axis (its 3-D state's velocity over
+    ground) for an object moving over ground at ``min_speed`` (m/s, a vehicle) or faster; the
+    ego vehicle's travel alone for a slower one or one without a 3-D state (as if static).
+
+    The object's image grows by this over its depth per frame: a pedestrian crossing ahead at
+    30 km/h expands by 0.02 per frame at 14 m, a lead car at the ego's speed not at all (with
+    the ego's travel alone, its outline expected its roof 40 px above the box to move 1.3 px a
+    frame up, and the outline never left its bumper). A pedestrian's velocity along the axis
+    is the least certain part of its 3-D state (+2 m/s off at 35 m): for slow objects the
+    static assumption is the better one (measured: nearside pedestrians warned up to 0.17 s
+    later with their state's velocity).
+    """
+    speed = _finite(sensors.speed_m_s)
+    g = cues.ground if cues else None
+    axis = pose.rotation()[:2, 2]
+    n = float(np.hypot(axis[0], axis[1]))
+    if g is None or n < 1e-6 or float(np.hypot(*g.velocity)) < min_speed:
+        return speed * dt
+    d = axis / n
+    return float(speed * d[0] - d @ g.velocity) * dt
 
 
 def _outline(tr: ImageTrack, cues: TrackCues | None, pose: CameraPose,
@@ -474,8 +507,9 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
     tracks = list(tracker.tracks)
     for i, tr in enumerate(tracks):
         before = state.cues.get(tr.uid)
-        shape = _outline(tr, before, pose, images, _finite(sensors.speed_m_s) * dt, cfg, camera,
-                         ego) if tr.confirmed else None
+        shape = _outline(tr, before, pose, images,
+                         closing_step(before, sensors, pose, dt, cfg.ground.accel_min_speed_m_s),
+                         cfg, camera, ego) if tr.confirmed else None
         cues[tr.uid], found = _update_cues(before, tr, t, dt, ego, sensors, pose,
                                            cfg, camera, lost, odo, shape)
         if found is not None:
@@ -484,8 +518,9 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
             tracks[i] = tr = replace(tr, id=found.id)
         if tr.confirmed:
             if shape is None:   # a 3-D state started this frame: outline it with that
-                shape = _outline(tr, cues[tr.uid], pose, images, _finite(sensors.speed_m_s) * dt,
-                                 cfg, camera, ego)
+                shape = _outline(tr, cues[tr.uid], pose, images,
+                                 closing_step(cues[tr.uid], sensors, pose, dt,
+                                              cfg.ground.accel_min_speed_m_s), cfg, camera, ego)
             shown = tr if shape is None else extended(tr, shape.top)
             th = assess(shown, cues[tr.uid], sensors, cfg, camera)
             if th.height_m is not None and th.height_m > cues[tr.uid].peak_height_m:

@@ -241,21 +241,22 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
         # expansion, so the scale change is fitted along the other axis only
         axes = tuple(a for a, cut in ((0, left or right), (1, bottom)) if not cut)
         # the scale change of the outline's flows (a pedestrian's particles are a strip at its
-        # feet, its outline the whole of it); for a vehicle (a 3-D state at accel_min_speed_m_s
-        # or faster) the more precise of that and the cluster's: a lead car's particles cover
-        # its back, its outline's rows reach its roof's silhouette, whose edge moves in steps
-        moving = c.weights >= cfg.clustering.member_weight
-        m = measure_expansion(c.positions[moving], c.flows[moving], c.weights[moving],
-                              ego.rotation, camera, axes, cfg.flow.window_px)
+        # feet, its outline the whole of it), else of the cluster's particles; for a vehicle (a
+        # 3-D state at accel_min_speed_m_s or faster) the more precise of the two: a lead car's
+        # particles cover its back, its outline's rows reach its roof's silhouette, whose edge
+        # moves in steps
+        m = None
         if cfg.ground.scale_from_outline and shape is not None \
                 and len(shape.positions) >= OUTLINE_MIN_POINTS:
-            m_outline = measure_expansion(shape.positions, shape.flows,
-                                          np.ones(len(shape.positions)), ego.rotation, camera,
-                                          axes, cfg.flow.window_px)
-            vehicle = g is not None and float(np.hypot(*g.velocity)) >= \
-                cfg.ground.accel_min_speed_m_s
-            if m_outline is not None and (m is None or not vehicle or m_outline.var <= m.var):
-                m = m_outline
+            m = measure_expansion(shape.positions, shape.flows, np.ones(len(shape.positions)),
+                                  ego.rotation, camera, axes, cfg.flow.window_px)
+        if m is None or (g is not None
+                         and float(np.hypot(*g.velocity)) >= cfg.ground.accel_min_speed_m_s):
+            moving = c.weights >= cfg.clustering.member_weight
+            m_cluster = measure_expansion(c.positions[moving], c.flows[moving], c.weights[moving],
+                                          ego.rotation, camera, axes, cfg.flow.window_px)
+            if m_cluster is not None and (m is None or m_cluster.var < m.var):
+                m = m_cluster
         if m is not None:
             s = scale_update(s, m, dt)
             # not before the scale cue itself is trusted (scale_ttc_min_frames): a new track's

@@ -48,6 +48,7 @@ from appliance.decision.ground_state import (
     ground_predict,
     ground_update,
     range_rate_update,
+    road_axis,
     update_body_pitch,
     velocity_prior,
 )
@@ -250,8 +251,7 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
                 and len(shape.positions) >= OUTLINE_MIN_POINTS:
             m = measure_expansion(shape.positions, shape.flows, np.ones(len(shape.positions)),
                                   ego.rotation, camera, axes, cfg.flow.window_px)
-        if m is None or (g is not None
-                         and float(np.hypot(*g.velocity)) >= cfg.ground.accel_min_speed_m_s):
+        if m is None or (g is not None and g.speed >= cfg.ground.accel_min_speed_m_s):
             moving = c.weights >= cfg.clustering.member_weight
             m_cluster = measure_expansion(c.positions[moving], c.flows[moving], c.weights[moving],
                                           ego.rotation, camera, axes, cfg.flow.window_px)
@@ -334,11 +334,9 @@ def closing_step(cues: TrackCues | None, sensors: SensorSample, pose: CameraPose
     """
     speed = _finite(sensors.speed_m_s)
     g = cues.ground if cues else None
-    axis = pose.rotation()[:2, 2]
-    n = float(np.hypot(axis[0], axis[1]))
-    if g is None or n < 1e-6 or float(np.hypot(*g.velocity)) < min_speed:
+    d = road_axis(pose)
+    if g is None or d is None or g.speed < min_speed:
         return speed * dt
-    d = axis / n
     return float(speed * d[0] - d @ g.velocity) * dt
 
 

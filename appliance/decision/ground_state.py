@@ -179,6 +179,19 @@ class GroundTrack:
         """Acceleration over ground (2,) m/s^2; 0 without the acceleration model."""
         return self.x[4:6] if len(self.x) == 6 else np.zeros(2)
 
+    @property
+    def speed(self) -> float:
+        """Speed over ground (m/s)."""
+        return float(np.hypot(self.x[2], self.x[3]))
+
+
+def road_axis(pose: CameraPose) -> FloatArray | None:
+    """Unit direction (2,) of the camera's optical axis on the road (vehicle frame); None
+    when the camera looks straight down or up."""
+    axis = pose.rotation()[:2, 2]
+    n = float(np.hypot(axis[0], axis[1]))
+    return None if n < 1e-6 else axis / n
+
 
 def h_position(n: int) -> FloatArray:
     """Measurement matrix (2, n) of the position."""
@@ -270,11 +283,9 @@ def range_rate_update(g: GroundTrack, rate_1_s: float, rate_var: float, pose: Ca
     scales the measurement, which is small where the object does not close on its own. A
     rate further than ``gate_sigmas`` (innovation std) from the state's is skipped."""
     z = ground_in_camera(pose, g.position)[2]
-    axis = pose.rotation()[:2, 2]
-    n = float(np.hypot(axis[0], axis[1]))
-    if z <= 0.5 or n < 1e-6 or not math.isfinite(rate_1_s) or rate_var <= 0.0:
+    d = road_axis(pose)
+    if z <= 0.5 or d is None or not math.isfinite(rate_1_s) or rate_var <= 0.0:
         return g
-    d = axis / n
     value, var = speed * float(d[0]) - rate_1_s * z, rate_var * z * z
     innovation = value - float(d @ g.velocity)
     if innovation ** 2 > gate_sigmas ** 2 * (float(d @ g.P[2:4, 2:4] @ d) + var):
@@ -357,7 +368,7 @@ def ground_predict(g: GroundTrack, dt: float, sensors: SensorSample, cfg: Ground
         return g
     # the acceleration of a slow object (a pedestrian) is not estimated: it would mostly be
     # its ground contacts' noise, and make its velocity noisier
-    steady = steady or float(np.hypot(g.x[2], g.x[3])) < cfg.accel_min_speed_m_s
+    steady = steady or g.speed < cfg.accel_min_speed_m_s
     if steady and len(g.x) == 6:
         x0, P0 = g.x.copy(), g.P.copy()
         x0[4:] = 0.0

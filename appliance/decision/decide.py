@@ -306,8 +306,7 @@ def moves_over_ground(g: GroundTrack, cfg: Config) -> bool:
     near zero once its 3-D state has converged, while it can be anywhere before.
     """
     v = g.velocity
-    speed = float(np.hypot(v[0], v[1]))
-    if g.updates < cfg.warning.moving_min_frames or speed < cfg.warning.min_speed_m_s:
+    if g.updates < cfg.warning.moving_min_frames or g.speed < cfg.warning.min_speed_m_s:
         return False
     Pv = g.P[2:4, 2:4]
     try:
@@ -472,7 +471,7 @@ def assess(track: ImageTrack, cues: TrackCues, sensors: SensorSample, cfg: Confi
             height = (report.bbox[3] - report.bbox[1]) * depth / camera.fy
         upright = max(height or 0.0, cues.peak_height_m) >= w.min_height_m
     fast = g is not None and cues.moved and w.fast_mover_m_s > 0.0 \
-        and float(np.hypot(*g.velocity)) >= w.fast_mover_m_s
+        and g.speed >= w.fast_mover_m_s
     return TrackThreat(report=report, on_course=on_course, on_course_wide=on_wide,
                        moving=cues.moved, upright=upright, height_m=height, fast=fast)
 

@@ -14,7 +14,8 @@ Prints one table with
   where a moving object is >= 20 px tall and >= 50 % visible, the share of
   particles with weight > 0.5 inside a moving object's truth box; in static-only
   scenarios, the longest run of frames in which one image region (a 32 px cell
-  and its neighbours) keeps a particle with weight > 0.5.
+  and its neighbours) keeps a particle with weight > 0.5, and where that region is
+  (its centre and the frames of the run, per filter seed).
 
 Options (``--key=value``, as the benchmarks runner passes only dashed words):
 ``--recordings=DIR`` (recordings already made; default: simulate every scenario of
@@ -308,17 +309,30 @@ def detection_share(case: Case, log: RunLog) -> tuple[int, int, int]:
     return inside, total, frames
 
 
-def longest_false_run(log: RunLog, width: int, height: int, min_particles: int = 1) -> int:
-    """Longest run of frames in which one region keeps high-weight particles.
+@dataclass(frozen=True)
+class FalseRun:
+    """The longest run of one region keeping high-weight particles (:func:`longest_false_run`):
+    its length (frames), the centre of the region's middle cell (u, v px) and the frame indices
+    of the recording where it starts and ends (both -1 when there is none)."""
+
+    frames: int
+    centre_px: tuple[float, float]
+    first: int
+    last: int
+
+
+def longest_false_run(log: RunLog, width: int, height: int, min_particles: int = 1) -> FalseRun:
+    """Longest run of frames in which one region keeps high-weight particles, and where it is.
 
     A region is a 32 px cell with its 8 neighbours (96 px square); it "keeps" them in a
     frame when it holds at least ``min_particles`` particles with weight > 0.5 (1: any;
     3: as many as the decision stage needs for a cluster, ``clustering.min_correspondences``).
+    Where the run is tells what the false evidence is (an occlusion edge, a border).
     """
     rows, cols = -(-height // CELL_PX), -(-width // CELL_PX)
     run = np.zeros((rows, cols), int)
-    longest = 0
-    for ps in log.particles:
+    best = FalseRun(0, (math.nan, math.nan), -1, -1)
+    for k, ps in enumerate(log.particles):
         count = np.zeros((rows + 2, cols + 2), int)
         pos = ps.positions[ps.weights > HIGH_WEIGHT]
         r = np.clip((pos[:, 1] // CELL_PX).astype(int), 0, rows - 1) + 1
@@ -327,8 +341,12 @@ def longest_false_run(log: RunLog, width: int, height: int, min_particles: int =
         near = sum(count[1 + dr:rows + 1 + dr, 1 + dc:cols + 1 + dc]
                    for dr in (-1, 0, 1) for dc in (-1, 0, 1))
         run = np.where(near >= min_particles, run + 1, 0)
-        longest = max(longest, int(run.max()))
-    return longest
+        top = int(run.max())
+        if top > best.frames:
+            cr, cc = np.unravel_index(int(run.argmax()), run.shape)
+            best = FalseRun(top, ((cc + 0.5) * CELL_PX, (cr + 0.5) * CELL_PX),
+                            log.frames[k - top + 1], log.frames[k])
+    return best
 
 
 def open_case(path: Path, cfg: Config) -> Case:
@@ -409,13 +427,17 @@ def main(argv: list[str]) -> int:
                                         for k in range(1, args.static_seeds)]
                 per_frame = np.mean([np.sum(p.weights > HIGH_WEIGHT) for lg in seeds
                                      for p in lg.particles])
-                one = [longest_false_run(lg, w, h) for lg in seeds]
-                three = [longest_false_run(lg, w, h, 3) for lg in seeds]
+                runs = [longest_false_run(lg, w, h) for lg in seeds]
+                one = [r.frames for r in runs]
+                three = [longest_false_run(lg, w, h, 3).frames for lg in seeds]
                 each = ", ".join(f"{a}/{b}" for a, b in zip(one, three))
                 value = (f"max {max(one)} / {max(three)} frames, median {np.median(one):g} / "
                          f"{np.median(three):g} over seeds {args.seed}-{args.seed + len(seeds) - 1}"
                          f" ({each}; {per_frame:.1f} w>0.5 per frame)")
                 rows.append((case.name, f"static {mode}: longest run, >=1 / >=3 w>0.5", value))
+                where = "; ".join(f"seed {args.seed + k}: ({r.centre_px[0]:.0f}, {r.centre_px[1]:.0f}) "
+                                  f"frames {r.first}-{r.last}" for k, r in enumerate(runs) if r.frames)
+                rows.append((case.name, f"static {mode}: where (region centre px)", where or "-"))
     print(f"{'recording':34s} {'quantity':44s} value")
     for name, what, value in rows:
         print(f"{name:34s} {what:44s} {value}")

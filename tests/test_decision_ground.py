@@ -561,3 +561,29 @@ def test_significant_acceleration() -> None:
     assert np.all(np.diff(a) >= -1e-12)  # monotonic: no jump as the estimate moves
     assert significant_acceleration(v, np.array([-2.0, 0.0]), np.eye(4), 2.0) == 0.0
     assert significant_acceleration(np.zeros(2), np.array([-2.0, 0.0]), P6, 2.0) == 0.0
+
+
+def test_the_measured_covariance_is_kept_while_coasting(default_config: Config) -> None:
+    """``P_measured`` is P after the last measurement: predictions grow P and leave it, a
+    contact or a bearing sets it again; the velocity it makes significant stays so."""
+    cfg = default_config.with_overrides({"ground": {"process_accel_m_s2": 4.0}}).ground
+    R = np.diag([0.4, 0.1]) ** 2
+    sensors = SensorSample(0.0, 10.0, 0.0)
+    g = ground_init(GroundContact(np.array([25.0, -4.0]), R), 0.0, cfg,
+                    (np.array([0.0, 1.4]), np.eye(2) * 0.04))
+    g = ground_update(ground_predict(g, 1 / 30, sensors, cfg),
+                      GroundContact(np.array([24.67, -3.95]), R), 1 / 30)
+    seen = g.P.copy()
+    np.testing.assert_array_equal(g.measured_covariance, seen)
+    for _ in range(30):
+        g = ground_predict(g, 1 / 30, sensors, cfg, steady=True)
+    assert g.P[3, 3] > 4.0 * seen[3, 3]
+    np.testing.assert_array_equal(g.measured_covariance, seen)
+    # tested with the grown P the walking speed is noise; with the measured one it is not
+    assert significant_velocity(g.velocity, g.P, 2.0)[1] == 0.0
+    assert significant_velocity(g.velocity, g.measured_covariance, 2.0)[1] > 1.0
+    b = bearing_update(g, float(np.arctan2(g.x[1], g.x[0] - 2.0)), (2.0, 0.0), 0.002)
+    np.testing.assert_array_equal(b.measured_covariance, b.P)
+    # a state built without one (as before P_measured existed) falls back to P
+    bare = GroundTrack(g.x, g.P, 0.0, 3)
+    np.testing.assert_array_equal(bare.measured_covariance, g.P)

@@ -412,8 +412,10 @@ def assess(track: ImageTrack, cues: TrackCues, sensors: SensorSample, cfg: Confi
     g = cues.ground
     if g is not None:
         pos = g.position
-        vel = significant_velocity(g.velocity, g.P, w.velocity_significance_sigmas,
-                                   w.velocity_conditioning)
+        # a velocity is as significant as it was when last measured: coasting (no contact
+        # this frame, or hidden) adds uncertainty, not evidence that the object stopped
+        vel = significant_velocity(g.velocity, g.P if cues.ground_fresh else g.measured_covariance,
+                                   w.velocity_significance_sigmas, w.velocity_conditioning)
         distance = float(outline_gap(pos, mount, 0.0))
         depth = float(pos[0] - mount.x_m)
         rng = float(np.hypot(pos[0] - mount.x_m, pos[1] - mount.y_m))

@@ -158,13 +158,21 @@ class GroundTrack:
     object's velocity over ground expressed in it; P (4, 4). With the acceleration model
     (``ground.accel_std_m_s2`` > 0) the state is ``[x, y, vx, vy, ax, ay]`` and P (6, 6): the
     acceleration over ground too (m/s^2). t_update: time of the last ground contact (s);
-    updates: how many contacts it has taken; rejected: outliers in a row."""
+    updates: how many contacts it has taken; rejected: outliers in a row. P_measured: P
+    after the last measurement (a contact, a velocity or bearing update); a prediction leaves
+    it as it was, so it tells how well the state was known when last seen (None: P)."""
 
     x: FloatArray
     P: FloatArray
     t_update: float
     updates: int
     rejected: int = 0
+    P_measured: FloatArray | None = None
+
+    @property
+    def measured_covariance(self) -> FloatArray:
+        """P after the last measurement (``P_measured``), P itself where none is recorded."""
+        return self.P if self.P_measured is None else self.P_measured
 
     @property
     def position(self) -> FloatArray:
@@ -214,7 +222,7 @@ def ground_init(contact: GroundContact, t: float, cfg: GroundConfig,
     if n == 6:
         P[4:, 4:] = np.eye(2) * cfg.accel_std_m_s2 ** 2
     return GroundTrack(x=np.concatenate([contact.z, v, np.zeros(n - 4)]), P=P, t_update=t,
-                       updates=1)
+                       updates=1, P_measured=P)
 
 
 @dataclass(frozen=True)
@@ -271,7 +279,8 @@ def velocity_update(g: GroundTrack, direction: FloatArray, value: float, std: fl
     measurement ``value`` +- ``std`` m/s; position, time and counts unchanged."""
     H = np.concatenate([np.zeros(2), direction, np.zeros(len(g.x) - 4)]).reshape(1, -1)
     x, P = update(g.x, g.P, np.array([value]), np.array([[std ** 2]]), H)
-    return GroundTrack(x=x, P=P, t_update=g.t_update, updates=g.updates, rejected=g.rejected)
+    return GroundTrack(x=x, P=P, t_update=g.t_update, updates=g.updates, rejected=g.rejected,
+                       P_measured=P)
 
 
 def range_rate_update(g: GroundTrack, rate_1_s: float, rate_var: float, pose: CameraPose,
@@ -334,7 +343,8 @@ def bearing_update(g: GroundTrack, azimuth: float, camera_xy: tuple[float, float
     x = g.x + K[:, 0] * innovation
     A = np.eye(len(g.x)) - K @ H
     P = A @ g.P @ A.T + (r * std_rad) ** 2 * (K @ K.T)
-    return GroundTrack(x=x, P=P, t_update=g.t_update, updates=g.updates, rejected=g.rejected)
+    return GroundTrack(x=x, P=P, t_update=g.t_update, updates=g.updates, rejected=g.rejected,
+                       P_measured=P)
 
 
 def ego_step(speed: float, yaw_rate: float, dt: float) -> tuple[FloatArray, FloatArray]:
@@ -375,7 +385,8 @@ def ground_predict(g: GroundTrack, dt: float, sensors: SensorSample, cfg: Ground
         P0[4:, :] = 0.0
         P0[:, 4:] = 0.0
         P0[4:, 4:] = np.eye(2) * cfg.accel_std_m_s2 ** 2
-        g = GroundTrack(x=x0, P=P0, t_update=g.t_update, updates=g.updates, rejected=g.rejected)
+        g = GroundTrack(x=x0, P=P0, t_update=g.t_update, updates=g.updates, rejected=g.rejected,
+                        P_measured=g.P_measured)
     speed = sensors.speed_m_s if math.isfinite(sensors.speed_m_s) else 0.0
     yaw = sensors.yaw_rate_rad_s if math.isfinite(sensors.yaw_rate_rad_s) else 0.0
     Rt, d = ego_step(speed, yaw, dt)
@@ -405,12 +416,12 @@ def ground_predict(g: GroundTrack, dt: float, sensors: SensorSample, cfg: Ground
     # polluted by a wrong association or a range bias that changes with range recovers
     alpha = math.exp(0.5 * dt / cfg.memory_s) if cfg.memory_s > 0.0 else 1.0
     x, P = predict(g.x, g.P, F, Q, u=d, B=B, alpha=alpha)
-    return GroundTrack(x=x, P=P, t_update=g.t_update, updates=g.updates)
+    return GroundTrack(x=x, P=P, t_update=g.t_update, updates=g.updates, P_measured=g.P_measured)
 
 
 def ground_update(g: GroundTrack, contact: GroundContact, t: float) -> GroundTrack:
     x, P = update(g.x, g.P, contact.z, contact.R, h_position(len(g.x)))
-    return GroundTrack(x=x, P=P, t_update=t, updates=g.updates + 1)
+    return GroundTrack(x=x, P=P, t_update=t, updates=g.updates + 1, P_measured=P)
 
 
 def innovation_sigmas(g: GroundTrack, contact: GroundContact) -> float:
@@ -431,5 +442,5 @@ def ground_absorb(g: GroundTrack | None, contact: GroundContact, t: float, cfg: 
         if g.rejected + 1 >= 5:
             return ground_init(contact, t, cfg, prior)
         return GroundTrack(x=g.x, P=g.P, t_update=g.t_update, updates=g.updates,
-                           rejected=g.rejected + 1)
+                           rejected=g.rejected + 1, P_measured=g.P_measured)
     return ground_update(g, contact, t)

@@ -291,6 +291,15 @@ def test_outlier_contacts_are_skipped_and_a_run_of_them_restarts(default_config:
     for k in range(4):
         skipped = ground_absorb(skipped, GroundContact(np.array([14.0, 2.0]), R), 1.0, cfg)
     assert skipped.updates == 1 and skipped.position == pytest.approx([14.0, 2.0])
+    # the same with a prediction before every contact, as the pipeline runs it: the count of
+    # outliers in a row survives the predictions
+    standing = SensorSample(0.0, 0.0, 0.0)
+    run = g
+    for k in range(5):
+        run = ground_absorb(ground_predict(run, 1 / 30, standing, cfg),
+                            GroundContact(np.array([14.0, 2.0]), R), (11 + k) / 30, cfg)
+        assert run.rejected == (k + 1 if k < 4 else 0)
+    assert run.updates == 1 and run.position == pytest.approx([14.0, 2.0])
 
 
 def test_moving_over_ground_needs_speed_significance_and_contacts(default_config: Config) -> None:

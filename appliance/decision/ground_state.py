@@ -25,7 +25,7 @@ for back-projection is then ``mount.pitch_rad + b`` with pan and tilt from the P
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from filterpy.common import Q_discrete_white_noise
@@ -279,8 +279,7 @@ def velocity_update(g: GroundTrack, direction: FloatArray, value: float, std: fl
     measurement ``value`` +- ``std`` m/s; position, time and counts unchanged."""
     H = np.concatenate([np.zeros(2), direction, np.zeros(len(g.x) - 4)]).reshape(1, -1)
     x, P = update(g.x, g.P, np.array([value]), np.array([[std ** 2]]), H)
-    return GroundTrack(x=x, P=P, t_update=g.t_update, updates=g.updates, rejected=g.rejected,
-                       P_measured=P)
+    return replace(g, x=x, P=P, P_measured=P)
 
 
 def range_rate_update(g: GroundTrack, rate_1_s: float, rate_var: float, pose: CameraPose,
@@ -343,8 +342,7 @@ def bearing_update(g: GroundTrack, azimuth: float, camera_xy: tuple[float, float
     x = g.x + K[:, 0] * innovation
     A = np.eye(len(g.x)) - K @ H
     P = A @ g.P @ A.T + (r * std_rad) ** 2 * (K @ K.T)
-    return GroundTrack(x=x, P=P, t_update=g.t_update, updates=g.updates, rejected=g.rejected,
-                       P_measured=P)
+    return replace(g, x=x, P=P, P_measured=P)
 
 
 def ego_step(speed: float, yaw_rate: float, dt: float) -> tuple[FloatArray, FloatArray]:
@@ -385,8 +383,7 @@ def ground_predict(g: GroundTrack, dt: float, sensors: SensorSample, cfg: Ground
         P0[4:, :] = 0.0
         P0[:, 4:] = 0.0
         P0[4:, 4:] = np.eye(2) * cfg.accel_std_m_s2 ** 2
-        g = GroundTrack(x=x0, P=P0, t_update=g.t_update, updates=g.updates, rejected=g.rejected,
-                        P_measured=g.P_measured)
+        g = replace(g, x=x0, P=P0)
     speed = sensors.speed_m_s if math.isfinite(sensors.speed_m_s) else 0.0
     yaw = sensors.yaw_rate_rad_s if math.isfinite(sensors.yaw_rate_rad_s) else 0.0
     Rt, d = ego_step(speed, yaw, dt)
@@ -416,12 +413,12 @@ def ground_predict(g: GroundTrack, dt: float, sensors: SensorSample, cfg: Ground
     # polluted by a wrong association or a range bias that changes with range recovers
     alpha = math.exp(0.5 * dt / cfg.memory_s) if cfg.memory_s > 0.0 else 1.0
     x, P = predict(g.x, g.P, F, Q, u=d, B=B, alpha=alpha)
-    return GroundTrack(x=x, P=P, t_update=g.t_update, updates=g.updates, P_measured=g.P_measured)
+    return replace(g, x=x, P=P)
 
 
 def ground_update(g: GroundTrack, contact: GroundContact, t: float) -> GroundTrack:
     x, P = update(g.x, g.P, contact.z, contact.R, h_position(len(g.x)))
-    return GroundTrack(x=x, P=P, t_update=t, updates=g.updates + 1, P_measured=P)
+    return replace(g, x=x, P=P, t_update=t, updates=g.updates + 1, rejected=0, P_measured=P)
 
 
 def innovation_sigmas(g: GroundTrack, contact: GroundContact) -> float:
@@ -441,6 +438,5 @@ def ground_absorb(g: GroundTrack | None, contact: GroundContact, t: float, cfg: 
     if g.updates >= 3 and innovation_sigmas(g, contact) > cfg.gate_sigmas:
         if g.rejected + 1 >= 5:
             return ground_init(contact, t, cfg, prior)
-        return GroundTrack(x=g.x, P=g.P, t_update=g.t_update, updates=g.updates,
-                           rejected=g.rejected + 1, P_measured=g.P_measured)
+        return replace(g, rejected=g.rejected + 1)
     return ground_update(g, contact, t)

@@ -414,7 +414,7 @@ def assess(track: ImageTrack, cues: TrackCues, sensors: SensorSample, cfg: Confi
         pos = g.position
         # a velocity is as significant as it was when last measured: coasting (no contact
         # this frame, or hidden) adds uncertainty, not evidence that the object stopped
-        vel = significant_velocity(g.velocity, g.P if cues.ground_fresh else g.measured_covariance,
+        vel = significant_velocity(g.velocity, g.measured_covariance,
                                    w.velocity_significance_sigmas, w.velocity_conditioning)
         distance = float(outline_gap(pos, mount, 0.0))
         depth = float(pos[0] - mount.x_m)

@@ -270,6 +270,7 @@ class WarningConfig:
     min_height_m: float = _p(0.0, 10.0)
     velocity_significance_sigmas: float = _p(0.0, 100.0)
     velocity_conditioning: bool = _p()
+    acceleration_significance_sigmas: float = _p(0.0, 100.0)
 
 
 @dataclass(frozen=True)

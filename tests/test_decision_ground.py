@@ -14,6 +14,7 @@ from appliance.decision.ground_state import (
     GroundTrack,
     back_project,
     bearing_update,
+    camera_pose,
     ground_contact,
     ground_init,
     ground_predict,
@@ -28,7 +29,13 @@ from appliance.decision.scale_ttc import (
     scale_ttc,
     scale_update,
 )
-from appliance.decision.threat import bumper_ttc, fuse, predict_path, significant_velocity
+from appliance.decision.threat import (
+    bumper_ttc,
+    fuse,
+    predict_path,
+    significant_acceleration,
+    significant_velocity,
+)
 from appliance.messages import EgoMotion, SensorSample
 from appliance.vision.geometry import (
     PinholeCamera,
@@ -494,6 +501,49 @@ def test_acceleration_state_follows_a_braking_car(default_config: Config) -> Non
     assert -3.0 < np.median(accels) < -1.0
 
 
+def test_a_braking_cars_time_to_collision_keeps_its_deceleration(default_config: Config) -> None:
+    """The path prediction keeps an estimated braking at the default significance: followed
+    with noisy contacts and an expansion rate every frame (as the pipeline does), a car 12 m
+    ahead braking at 2 m/s^2 is estimated at about 2 m/s^2 with a std the Singer model keeps
+    near 1.7 m/s^2, and 1.5 s into the braking its TTC is within a few percent of the truth
+    (median of 20 seeds). Tested at 2 std, as velocities are, the same estimates counted a
+    fraction of themselves and the TTC came out about 60 % long."""
+    cfg, mount = default_config, default_config.mount
+    dt, v0, decel, r = 1 / 30, 50 / 3.6, 2.0, 0.9
+    R = np.diag([0.3, 0.05]) ** 2
+
+    def follow(seed: int, rate_std: float = 0.03) -> tuple[GroundTrack, float]:
+        rng = np.random.default_rng(seed)
+        g = None
+        for k in range(61):
+            t = k * dt
+            tb = max(t - 0.5, 0.0)
+            x, closing = 16.0 - 0.5 * decel * tb * tb, decel * tb
+            contact = GroundContact(z=np.array([x, 0.0]) + rng.normal(0.0, [0.3, 0.05]), R=R)
+            sensors = SensorSample(t, v0, 0.0)
+            if g is None:
+                g = ground_init(contact, t, cfg.ground, (np.array([v0, 0.0]), np.eye(2)))
+                continue
+            g = ground_update(ground_predict(g, dt, sensors, cfg.ground), contact, t)
+            rate = closing / (x - mount.x_m) + rng.normal(0.0, rate_std)
+            g = range_rate_update(g, rate, (cfg.ground.range_rate_std_gain * rate_std) ** 2,
+                                  camera_pose(mount, 0.0, sensors), v0, cfg.ground.gate_sigmas)
+        assert g is not None
+        gap, closing = x - r - mount.vehicle_front_m, decel * 1.5
+        return g, (-closing + math.sqrt(closing ** 2 + 2 * decel * gap)) / decel
+
+    errors: dict[float, list[float]] = {cfg.warning.acceleration_significance_sigmas: [], 2.0: []}
+    for seed in range(20):
+        g, truth = follow(seed)
+        for sigmas, err in errors.items():
+            a = significant_acceleration(g.velocity, g.acceleration, g.P, sigmas)
+            ttc = predict_path(g.position, g.velocity, v0, 0.0, mount,
+                               cfg.warning.corridor_margin_m, r, 6.0, accel=a).ttc
+            err.append(abs(ttc - truth) / truth if ttc is not None else math.inf)
+    assert np.median(errors[cfg.warning.acceleration_significance_sigmas]) < 0.15
+    assert np.median(errors[2.0]) > 0.3
+
+
 def test_coasting_forgets_the_acceleration(default_config: Config) -> None:
     """Without contacts (``steady``) the state moves at constant velocity: an acceleration
     cannot be followed while the object is hidden."""
@@ -558,8 +608,6 @@ def test_significant_acceleration() -> None:
     """Along the direction of travel: whole from ``sigmas`` std, 0 below ``sigmas - 1`` std,
     scaled linearly in between (no jump of the TTC when it hovers there); 0 without the
     model or standing still."""
-    from appliance.decision.threat import significant_acceleration
-
     P6 = np.diag([0.1, 0.1, 0.2, 0.2, 0.5, 0.5]) ** 2
     v = np.array([10.0, 0.0])
     assert significant_acceleration(v, np.array([-2.0, 0.3]), P6, 2.0) == pytest.approx(-2.0)

@@ -241,22 +241,19 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
         # a border cuts the box along one axis: what enters or leaves the image there is no
         # expansion, so the scale change is fitted along the other axis only
         axes = tuple(a for a, cut in ((0, left or right), (1, bottom)) if not cut)
-        # the scale change of the outline's flows (a pedestrian's particles are a strip at its
-        # feet, its outline the whole of it), else of the cluster's particles; for a vehicle (a
-        # 3-D state at accel_min_speed_m_s or faster) the more precise of the two: a lead car's
-        # particles cover its back, its outline's rows reach its roof's silhouette, whose edge
-        # moves in steps
+        # the scale change of the outline's flows (the whole object), else of the cluster's
+        # particles: a pedestrian's are a strip at its feet; a lead car's a strip along its bumper,
+        # whose fit rests on the two side edges, which step together and make it bimodal while
+        # claiming a smaller variance than the outline's (README: braking lead car)
         m = None
         if cfg.ground.scale_from_outline and shape is not None \
                 and len(shape.positions) >= OUTLINE_MIN_POINTS:
             m = measure_expansion(shape.positions, shape.flows, np.ones(len(shape.positions)),
                                   ego.rotation, camera, axes, cfg.flow.window_px)
-        if m is None or (g is not None and g.speed >= cfg.ground.accel_min_speed_m_s):
+        if m is None:
             moving = c.weights >= cfg.clustering.member_weight
-            m_cluster = measure_expansion(c.positions[moving], c.flows[moving], c.weights[moving],
-                                          ego.rotation, camera, axes, cfg.flow.window_px)
-            if m_cluster is not None and (m is None or m_cluster.var < m.var):
-                m = m_cluster
+            m = measure_expansion(c.positions[moving], c.flows[moving], c.weights[moving],
+                                  ego.rotation, camera, axes, cfg.flow.window_px)
         if m is not None:
             s = scale_update(s, m, dt)
             # not before the scale cue itself is trusted (scale_ttc_min_frames): a new track's
@@ -421,7 +418,7 @@ def assess(track: ImageTrack, cues: TrackCues, sensors: SensorSample, cfg: Confi
         rng = float(np.hypot(pos[0] - mount.x_m, pos[1] - mount.y_m))
         radius = object_radius(track.size[0], rng, camera.fx)
         # braking or speeding up, where the state estimates it (ground.accel_min_speed_m_s)
-        acc = significant_acceleration(vel, g.acceleration, g.P, w.velocity_significance_sigmas)
+        acc = significant_acceleration(vel, g.acceleration, g.P, w.acceleration_significance_sigmas)
         base = predict_path(pos, vel, speed, yaw, mount, w.corridor_margin_m, radius, w.horizon_s,
                             acc)
         wide = predict_path(pos, vel, speed, yaw, mount,

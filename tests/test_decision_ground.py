@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from appliance.config import Config
+from appliance.config import Config, GroundConfig, MountConfig
 from appliance.decision.ground_state import (
     CameraPose,
     GroundContact,
@@ -460,11 +460,14 @@ def test_a_bearing_corrects_only_across_the_line_of_sight() -> None:
     assert bearing_update(g, math.nan, cam, 0.003) is g
 
 
-def _follow_braking_car(cfg: Config, seed: int = 0) -> tuple[GroundTrack, float]:
+def _follow_braking_car(cfg: GroundConfig, seed: int = 0, mount: MountConfig | None = None,
+                        rate_std: float = 0.03) -> tuple[GroundTrack, float]:
     """Ego at 50 km/h behind a car 16 m ahead (rear axle frame) at the same speed, which brakes
     at 2 m/s^2 from t = 0.5 s; contacts every 1/30 s with 0.3 m noise in range, 1.5 s of
     braking; the state starts at the car's speed +- 1 m/s (as from a track followed for a
-    while). Returns the state and the car's true velocity over ground."""
+    while). With ``mount`` the state also takes the car's expansion rate every frame, as the
+    pipeline does (``rate_std`` 1/s noise, counted ``range_rate_std_gain`` times). Returns the
+    state and the car's true velocity over ground."""
     rng = np.random.default_rng(seed)
     dt, v0, decel = 1 / 30, 50 / 3.6, 2.0
     R = np.diag([0.3, 0.05]) ** 2
@@ -475,9 +478,15 @@ def _follow_braking_car(cfg: Config, seed: int = 0) -> tuple[GroundTrack, float]
         gap = 16.0 - 0.5 * decel * tb * tb  # ego and car at v0 until the car brakes
         z = np.array([gap, 0.0]) + rng.normal(0.0, [0.3, 0.05])
         contact = GroundContact(z=z, R=R)
-        g = ground_init(contact, t, cfg, (np.array([v0, 0.0]), np.eye(2))) if g is None \
-            else ground_update(
-            ground_predict(g, dt, SensorSample(t, v0, 0.0), cfg), contact, t)
+        sensors = SensorSample(t, v0, 0.0)
+        if g is None:
+            g = ground_init(contact, t, cfg, (np.array([v0, 0.0]), np.eye(2)))
+            continue
+        g = ground_update(ground_predict(g, dt, sensors, cfg), contact, t)
+        if mount is not None:
+            rate = decel * tb / (gap - mount.x_m) + rng.normal(0.0, rate_std)
+            g = range_rate_update(g, rate, (cfg.range_rate_std_gain * rate_std) ** 2,
+                                  camera_pose(mount, 0.0, sensors), v0, cfg.gate_sigmas)
     assert g is not None
     return g, v0 - decel * (60 * dt - 0.5)
 
@@ -509,32 +518,14 @@ def test_a_braking_cars_time_to_collision_keeps_its_deceleration(default_config:
     (median of 20 seeds). Tested at 2 std, as velocities are, the same estimates counted a
     fraction of themselves and the TTC came out about 60 % long."""
     cfg, mount = default_config, default_config.mount
-    dt, v0, decel, r = 1 / 30, 50 / 3.6, 2.0, 0.9
-    R = np.diag([0.3, 0.05]) ** 2
-
-    def follow(seed: int, rate_std: float = 0.03) -> tuple[GroundTrack, float]:
-        rng = np.random.default_rng(seed)
-        g = None
-        for k in range(61):
-            t = k * dt
-            tb = max(t - 0.5, 0.0)
-            x, closing = 16.0 - 0.5 * decel * tb * tb, decel * tb
-            contact = GroundContact(z=np.array([x, 0.0]) + rng.normal(0.0, [0.3, 0.05]), R=R)
-            sensors = SensorSample(t, v0, 0.0)
-            if g is None:
-                g = ground_init(contact, t, cfg.ground, (np.array([v0, 0.0]), np.eye(2)))
-                continue
-            g = ground_update(ground_predict(g, dt, sensors, cfg.ground), contact, t)
-            rate = closing / (x - mount.x_m) + rng.normal(0.0, rate_std)
-            g = range_rate_update(g, rate, (cfg.ground.range_rate_std_gain * rate_std) ** 2,
-                                  camera_pose(mount, 0.0, sensors), v0, cfg.ground.gate_sigmas)
-        assert g is not None
-        gap, closing = x - r - mount.vehicle_front_m, decel * 1.5
-        return g, (-closing + math.sqrt(closing ** 2 + 2 * decel * gap)) / decel
+    v0, decel, r = 50 / 3.6, 2.0, 0.9
+    # 1.5 s into the braking: 13.75 m ahead of the rear axle, closing at 3 m/s
+    gap, closing = 16.0 - 0.5 * decel * 1.5 ** 2 - r - mount.vehicle_front_m, decel * 1.5
+    truth = (-closing + math.sqrt(closing ** 2 + 2 * decel * gap)) / decel
 
     errors: dict[float, list[float]] = {cfg.warning.acceleration_significance_sigmas: [], 2.0: []}
     for seed in range(20):
-        g, truth = follow(seed)
+        g, _ = _follow_braking_car(cfg.ground, seed, mount)
         for sigmas, err in errors.items():
             a = significant_acceleration(g.velocity, g.acceleration, g.P, sigmas)
             ttc = predict_path(g.position, g.velocity, v0, 0.0, mount,

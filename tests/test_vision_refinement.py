@@ -13,6 +13,7 @@ from appliance.messages import SensorSample
 from appliance.vision import geometry as g
 from appliance.vision.epipolar import (
     epipolar_distances,
+    essential_matrices,
     heading_from_polar,
     polar_from_translation,
     transfer_residuals,
@@ -83,6 +84,22 @@ def test_epipolar_distance_is_zero_for_the_true_motion_and_measures_pixels() -> 
     normal = np.array([-direction[1], direction[0]])
     d = epipolar_distances(theta, x_prev[:1], x_cur[:1] + 2.0 * normal, K)
     assert abs(abs(d[0, 0]) - 2.0) < 1e-3
+
+
+def test_essential_matrices_are_the_cross_product_of_t_with_the_rotation() -> None:
+    # written out entry by entry for speed: each must be [t]_x R of the state's own R and t
+    theta = np.random.default_rng(5).uniform(-1.0, 1.0, (7, 5))
+    E = essential_matrices(theta)
+    for th, e in zip(theta, E):
+        R = g.euler_to_matrix(th[2:])
+        t = translation_from_theta(th[None, :])[0]
+        np.testing.assert_allclose(e, np.cross(t[None, :], R.T).T, atol=1e-12)   # [t]_x R, column by column
+    # and b . E a = 0 for the rays of the true motion's static points
+    x_prev, x_cur = correspondences(R_TRUE, T_TRUE)
+    a = np.column_stack([(x_prev - [CAM.cx, CAM.cy]) / [CAM.fx, CAM.fy], np.ones(len(x_prev))])
+    b = np.column_stack([(x_cur - [CAM.cx, CAM.cy]) / [CAM.fx, CAM.fy], np.ones(len(x_cur))])
+    E_true = essential_matrices(truth_theta(R_TRUE, T_TRUE)[None, :])[0]
+    assert np.max(np.abs(np.einsum("mi,ij,mj->m", b, E_true, a))) < 1e-12
 
 
 def wide_problem(theta_bar: np.ndarray) -> MapProblem:

@@ -57,15 +57,17 @@ def euler_to_matrix(r: NDArray[np.floating]) -> FloatArray:
     Vectorised: returns shape (..., 3, 3).
     """
     r = np.asarray(r, dtype=np.float64)
-    cx, cy, cz = np.cos(r[..., 0]), np.cos(r[..., 1]), np.cos(r[..., 2])
-    sx, sy, sz = np.sin(r[..., 0]), np.sin(r[..., 1]), np.sin(r[..., 2])
+    c, s = np.cos(r), np.sin(r)   # one call each: LM builds these for batches of small states
+    cx, cy, cz = c[..., 0], c[..., 1], c[..., 2]
+    sx, sy, sz = s[..., 0], s[..., 1], s[..., 2]
+    czsy, szsy = cz * sy, sz * sy
     R = np.empty(r.shape[:-1] + (3, 3))
     R[..., 0, 0] = cz * cy
-    R[..., 0, 1] = cz * sy * sx - sz * cx
-    R[..., 0, 2] = cz * sy * cx + sz * sx
+    R[..., 0, 1] = czsy * sx - sz * cx
+    R[..., 0, 2] = czsy * cx + sz * sx
     R[..., 1, 0] = sz * cy
-    R[..., 1, 1] = sz * sy * sx + cz * cx
-    R[..., 1, 2] = sz * sy * cx - cz * sx
+    R[..., 1, 1] = szsy * sx + cz * cx
+    R[..., 1, 2] = szsy * cx - cz * sx
     R[..., 2, 0] = -sy
     R[..., 2, 1] = cy * sx
     R[..., 2, 2] = cy * cx

@@ -25,7 +25,8 @@ from appliance.recording import Recording
 
 def evaluate_run(recording: str | Path, run_dir: str | Path, plot: bool = True) -> dict[str, Any]:
     """Score ``run_dir`` against ``recording``; writes evaluation.json (and timeline.png)."""
-    rec = Recording(recording, load_config())
+    cfg = load_config()
+    rec = Recording(recording, cfg)
     truth_raw = rec.truth()
     if truth_raw is None:
         raise UsageError(f"{rec.path}: no truth.json; only simulated recordings can be evaluated")
@@ -37,7 +38,7 @@ def evaluate_run(recording: str | Path, run_dir: str | Path, plot: bool = True) 
     warnings = read_warnings(run / "warnings.jsonl")
     cam = rec.meta.camera
     result = evaluate(truth, tracks, warnings, rec.frame_times, (cam.width, cam.height),
-                      rec.meta.mount)
+                      rec.meta.mount, cfg.warning.corridor_margin_m, cfg.warning.ttc_caution_s)
     result["recording"] = str(rec.path)
     result["run_dir"] = str(run)
     (run / "evaluation.json").write_text(json.dumps(result, indent=2) + "\n")
@@ -96,6 +97,15 @@ def main(args: argparse.Namespace) -> int:
               f"{_fmt(o['first_eligible_frame'])}, first detection "
               f"{_fmt(o['first_detection_frame'])}, delay {_fmt(o['detection_delay_frames'])} "
               f"frames, tracked {_fmt(o['tracked_fraction'], '.0%')}, tracks {o['track_ids']}")
+    for c in result["level1_courses"]:
+        if c["object"] is None:
+            course = "no mover with a known course then"
+        elif c["truth_meets_s"] is not None:
+            course = f"object {c['object']}'s truth course meets the corridor {c['truth_meets_s']:.2f} s later"
+        else:
+            course = (f"the nearest truth course (object {c['object']}) passes "
+                      f"{c['truth_closest_m']:.2f} m outside the corridor")
+        print(f"  level 1 raised at frame {c['frame']} (t {c['t']:.3f}): {course}")
     run = Path(args.run_dir)
     print(f"wrote {run / 'evaluation.json'} and {run / 'timeline.png'}")
     return 0

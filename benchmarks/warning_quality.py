@@ -174,7 +174,9 @@ def main(argv: list[str]) -> int:
     calm_min = sum(r["duration_s"] for r in calm) / 60.0
     if calm_min > 0:
         print(f"level-1 onsets in no-collision runs: {sum(r['level1_onsets'] for r in calm)} in "
-              f"{calm_min:.1f} min ({sum(r['level1_onsets'] for r in calm) / calm_min:.2f}/min)")
+              f"{calm_min:.1f} min ({sum(r['level1_onsets'] for r in calm) / calm_min:.2f}/min); "
+              f"{sum(r['level1_on_truth_course'] for r in calm)} of them raised while the truth "
+              f"course met the corridor within the caution horizon")
     timely = [r for r in ok for o in r["objects"]
               if o["detection_delay_frames"] is not None and o["detection_delay_frames"] <= 10]
     movers = [o for r in ok for o in r["objects"]]

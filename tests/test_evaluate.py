@@ -296,3 +296,49 @@ def test_a_warning_from_the_objects_own_track_while_it_is_hidden_is_on_it(
     assert r["lead_time_s"] == pytest.approx(2.5 - 60 / FPS, abs=1e-3)
     r2 = run_with(24, "run2")
     assert r2["false_level2"] == 1 and r2["lead_time_s"] is None
+
+
+def test_a_level1_onset_is_checked_against_the_truth_course_at_that_moment(
+        tmp_path: Path, default_config: Config) -> None:
+    # the collision truth: closing at 10 m/s in the lane, the bumper met 2.5 s after frame 0;
+    # a caution at frame 10 has the truth course meet the outline 2.17 s later (0.05 s steps)
+    rec = write_recording(tmp_path / "rec", default_config)
+    run = write_run(tmp_path / "run", [], [warning(10, 1, 3, None), warning(20, 0, 3, None)])
+    r = evaluate_run(rec, run, plot=False)
+    (c,) = r["level1_courses"]
+    assert c["object"] == 1 and c["truth_meets_s"] == pytest.approx(2.2) and c["truth_closest_m"] == 0.0
+    assert r["level1_on_truth_course"] == 1
+    # the passing truth: 5 m to the side, parallel: 5 - 0.9 (half width) - 0.3 (margin) away
+    rec = write_recording(tmp_path / "rec2", default_config, collision=False)
+    run = write_run(tmp_path / "run2", [], [warning(10, 1, 3, None), warning(20, 0, 3, None)])
+    r = evaluate_run(rec, run, plot=False)
+    (c,) = r["level1_courses"]
+    assert c["truth_meets_s"] is None and c["truth_closest_m"] == pytest.approx(3.8)
+    assert r["level1_on_truth_course"] == 0 and r["level1_onsets"] == 1
+
+
+def test_the_truth_course_of_a_braking_car_stops_it(default_config: Config) -> None:
+    from appliance.evaluation.metrics import truth_course
+
+    # ego at 10 m/s (a static post ahead says so); a lead car 11.73 m ahead of the bumper,
+    # braking at 6 m/s^2 from 10 m/s 0.3 s ago: it stops 5.6 m on, the ego car reaches it 1.73 s
+    # from now; kept at its present speed (8.2 m/s) it would still be 6.3 m ahead in 3 s
+    front = 3.9
+    frames, pos, vel = [], [], []
+    for k in range(10):                    # frames 0-9, braking from frame 0 (t = 0)
+        t = k / FPS
+        ground = 10.0 - 6.0 * t
+        frames.append(k)
+        pos.append([front + 12.0 - 3.0 * t * t, 0.0])
+        vel.append([ground - 10.0, 0.0])
+    lead = TruthObject(id=1, cls="car", moving=True, frames=np.array(frames),
+                       bbox=np.zeros((10, 4)), visible=np.ones(10), pos=np.array(pos),
+                       vel=np.array(vel))
+    post = TruthObject(id=2, cls="post", moving=False, frames=np.array(frames),
+                       bbox=np.zeros((10, 4)), visible=np.ones(10),
+                       pos=np.array([[50.0, 5.0]] * 10), vel=np.array([[-10.0, 0.0]] * 10))
+    ego = ego_motion([lead, post])
+    times = np.arange(10) / FPS
+    oid, meets, closest = truth_course([lead], 9, ego, times, default_config.mount, 0.3, 3.0)
+    assert oid == 1 and closest == 0.0
+    assert meets == pytest.approx(1.75, abs=0.06)

@@ -34,6 +34,16 @@ Definitions (where the issue is silent, what a validation engineer expects):
   holds at least 80 % of the warning's box while the mover is at least half visible
   (a close pedestrian warned on its legs' box: IoU 0.17, but not a static object).
 * **Level-1 per minute:** onsets from level 0 to level >= 1 per minute of recording.
+* **Truth course of a level-1 onset:** what the truth says of the caution when it was
+  raised: every mover's course continued at its truth velocity over the ground (the ego
+  vehicle on its truth arc; a mover's speed keeps changing as it did over the last 6
+  frames, so a braking car stops) for ``caution_s`` (``warning.ttc_caution_s``, 3 s), and the
+  one that comes closest to the ego outline widened by ``margin_m`` on each side
+  (``warning.corridor_margin_m``, 0.3 m): its id, when it meets that outline (null: it
+  does not within the horizon) and its closest gap. A caution for a pedestrian walking
+  into the path who stops later is right when it is raised; one on nothing is not. The
+  count of onsets whose truth course meets the outline is reported; the level-1 target
+  counts every onset, as the issue says.
 * **TTC / distance error:** medians over the frames of the last 3 s before
   ``collision_t`` of |estimate - truth| / truth for the track of the colliding
   object; the truth TTC is ``collision_t - t``, the truth distance is the gap
@@ -53,7 +63,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from appliance.config import MountConfig
-from appliance.decision.threat import outline_gap
+from appliance.decision.threat import outline_gap, predict_path
 from appliance.evaluation.runfiles import Box, TrackRow, Truth, TruthObject, WarningRow
 
 IOU_MATCH = 0.3
@@ -65,6 +75,7 @@ MIN_ATTRIBUTED_FRAMES = 3
 ATTRIBUTION_WINDOW = 15  # frames
 INSIDE_SHARE = 0.8       # a warning box this much inside a visible mover's box is on the mover
 MIN_SPEED_M_S = 0.3      # a mover slower than this over the ground is standing, not eligible
+COURSE_ACCEL_FRAMES = 6  # a truth course's acceleration: its speed's change over this many frames
 
 TARGETS = {
     "lead_time_s": 1.5,
@@ -164,14 +175,56 @@ def eligible_mask(o: TruthObject, ego: dict[int, tuple[float, float]], width: in
     return mask
 
 
+def _ground_velocity(o: TruthObject, i: int, ego: dict[int, tuple[float, float]]
+                     ) -> NDArray[np.float64] | None:
+    """Truth velocity over the ground (m/s, vehicle frame) of row i; None where unknown.
+    Without the frame's ego motion, the relative velocity (ego_motion's inverse)."""
+    if o.vel is None or not np.all(np.isfinite(o.pos[i])) or not np.all(np.isfinite(o.vel[i])):
+        return None
+    (px, py), (vx, vy) = o.pos[i], o.vel[i]
+    speed, yaw = ego.get(int(o.frames[i]), (0.0, 0.0))
+    return np.array([vx - (-speed + yaw * py), vy + yaw * px])
+
+
+def truth_course(movers: list[TruthObject], frame: int, ego: dict[int, tuple[float, float]],
+                 frame_times: NDArray[np.float64], mount: MountConfig, margin_m: float,
+                 caution_s: float) -> tuple[int | None, float | None, float | None]:
+    """(id, time to meet the widened outline or None, closest gap m) of the mover whose
+    course from ``frame`` comes closest (module docstring): continued at its truth velocity
+    and its speed's change over the last ``COURSE_ACCEL_FRAMES`` (a braking car stops);
+    (None, None, None) when no mover has a position and velocity then."""
+    best: tuple[int | None, float | None, float | None] = (None, None, None)
+    best_key = (2, 0.0)
+    for o in movers:
+        i = o.at(frame)
+        ground = None if i is None else _ground_velocity(o, i, ego)
+        if i is None or ground is None:
+            continue
+        accel = 0.0
+        j = o.at(frame - COURSE_ACCEL_FRAMES)
+        before = None if j is None else _ground_velocity(o, j, ego)
+        if j is not None and before is not None and 0 <= frame - COURSE_ACCEL_FRAMES < len(frame_times) \
+                and frame < len(frame_times):
+            dt = float(frame_times[frame] - frame_times[frame - COURSE_ACCEL_FRAMES])
+            if dt > 0.0:
+                accel = (float(np.hypot(*ground)) - float(np.hypot(*before))) / dt
+        speed, yaw = ego.get(frame, (0.0, 0.0))
+        path = predict_path(o.pos[i], ground, speed, yaw, mount, margin_m, 0.0, caution_s, accel)
+        key = (0, path.ttc) if path.ttc is not None else (1, path.closest)   # soonest, else nearest
+        if key < best_key:
+            best, best_key = (o.id, path.ttc, round(path.closest, 2)), key
+    return best
+
+
 def _median(values: list[float]) -> float | None:
     return float(np.median(values)) if values else None
 
 
 def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
              frame_times: NDArray[np.float64], image_size: tuple[int, int],
-             mount: MountConfig) -> dict[str, Any]:
-    """All scores of one run as a JSON-ready dict (see the module docstring)."""
+             mount: MountConfig, margin_m: float = 0.3, caution_s: float = 3.0) -> dict[str, Any]:
+    """All scores of one run as a JSON-ready dict (see the module docstring); ``margin_m``
+    and ``caution_s``: the corridor margin and level-1 horizon of the truth courses."""
     width, height = image_size
     n_frames = len(frame_times)
     duration_s = float(frame_times[-1] - frame_times[0]) if n_frames > 1 else 0.0
@@ -272,6 +325,13 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
         colliding, ct, match, owner, by_frame, frame_times, mount) if colliding is not None \
         and ct is not None else (None, None, None, None)
 
+    courses: list[dict[str, Any]] = []
+    for w in l1_onsets:
+        who, meets, closest = truth_course(movers, w.frame, ego, frame_times, mount, margin_m,
+                                           caution_s)
+        courses.append({"t": round(w.t, 3), "frame": w.frame, "object": who,
+                        "truth_meets_s": meets, "truth_closest_m": closest})
+
     minutes = duration_s / 60.0
     known = [d for d in delays if d is not None]
     worst_delay = None if not delays or len(known) < len(delays) else max(known)
@@ -290,6 +350,8 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
         "false_level2_t": [round(w.t, 3) for w in false_l2],
         "level1_onsets": len(l1_onsets),
         "level1_per_min": round(len(l1_onsets) / minutes, 3) if minutes > 0 else None,
+        "level1_on_truth_course": sum(1 for c in courses if c["truth_meets_s"] is not None),
+        "level1_courses": courses,
         "worst_detection_delay_frames": worst_delay,
         "ttc_rel_error_median": ttc_err,
         "ttc_coverage": ttc_cov,

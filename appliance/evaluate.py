@@ -101,7 +101,8 @@ def main(args: argparse.Namespace) -> int:
         if c["object"] is None:
             course = "no mover with a known course then"
         elif c["truth_meets_s"] is not None:
-            course = f"object {c['object']}'s truth course meets the corridor {c['truth_meets_s']:.2f} s later"
+            course = (f"object {c['object']}'s truth course meets the corridor "
+                      f"{c['truth_meets_s']:.2f} s later")
         else:
             course = (f"the nearest truth course (object {c['object']}) passes "
                       f"{c['truth_closest_m']:.2f} m outside the corridor")

@@ -4,8 +4,9 @@ Prints one table with
 
 * speed: median ms per VGA frame of ``perceive`` (flow + refinement + detection,
   500 particles, OpenCV on one thread, frame after frame as the pipeline runs it) and,
-  on the same frame pairs in the same run (after perceive's pass), the dense baseline (DIS optical flow over the whole frame, preset FAST,
-  then the same likelihood at every pixel), with the ratio; the split into flow /
+  on the same frame pairs in the same run (after perceive's pass), the dense baseline
+  (DIS optical flow over the whole frame, preset FAST, then the same likelihood at
+  every pixel), with the ratio; the split into flow /
   refinement / detection; our batched LM against ``scipy.optimize.least_squares``
   ("lm") doing the same preemptive MSAC;
 * refinement: median rotation error per frame (deg) of the refined and of the

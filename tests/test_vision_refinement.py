@@ -93,7 +93,8 @@ def test_essential_matrices_are_the_cross_product_of_t_with_the_rotation() -> No
     for th, e in zip(theta, E):
         R = g.euler_to_matrix(th[2:])
         t = translation_from_theta(th[None, :])[0]
-        np.testing.assert_allclose(e, np.cross(t[None, :], R.T).T, atol=1e-12)   # [t]_x R, column by column
+        # [t]_x R, column by column
+        np.testing.assert_allclose(e, np.cross(t[None, :], R.T).T, atol=1e-12)
     # and b . E a = 0 for the rays of the true motion's static points
     x_prev, x_cur = correspondences(R_TRUE, T_TRUE)
     a = np.column_stack([(x_prev - [CAM.cx, CAM.cy]) / [CAM.fx, CAM.fy], np.ones(len(x_prev))])

@@ -148,18 +148,24 @@ def ego_motion(objects: tuple[TruthObject, ...] | list[TruthObject]
     return {f: (v, w) for f, (_, v, w) in best.items()}
 
 
+def _ground_velocity(o: TruthObject, i: int, speed: float, yaw: float
+                     ) -> NDArray[np.float64] | None:
+    """Row i's truth velocity over the ground (m/s, vehicle frame), the ego vehicle at ``speed``
+    and ``yaw`` rate (:func:`ego_motion`'s inverse); None where position or velocity is unknown."""
+    if o.vel is None or not np.all(np.isfinite(o.pos[i])) or not np.all(np.isfinite(o.vel[i])):
+        return None
+    (px, py), (vx, vy) = o.pos[i], o.vel[i]
+    return np.array([vx - (-speed + yaw * py), vy - (-yaw * px)])
+
+
 def ground_speed(o: TruthObject, ego: dict[int, tuple[float, float]]) -> NDArray[np.float64]:
     """(N,) speed of a truth object over the ground per frame, m/s; NaN where unknown."""
     out = np.full(len(o.frames), np.nan)
-    if o.vel is None:
-        return out
     for i, f in enumerate(o.frames):
         e = ego.get(int(f))
-        if e is None:
-            continue
-        v, w = e
-        (px, py), (vx, vy) = o.pos[i], o.vel[i]
-        out[i] = math.hypot(vx - (-v + w * py), vy - (-w * px))
+        g = None if e is None else _ground_velocity(o, i, *e)
+        if g is not None:
+            out[i] = math.hypot(g[0], g[1])
     return out
 
 
@@ -175,17 +181,6 @@ def eligible_mask(o: TruthObject, ego: dict[int, tuple[float, float]], width: in
     return mask
 
 
-def _ground_velocity(o: TruthObject, i: int, ego: dict[int, tuple[float, float]]
-                     ) -> NDArray[np.float64] | None:
-    """Truth velocity over the ground (m/s, vehicle frame) of row i; None where unknown.
-    Without the frame's ego motion, the relative velocity (ego_motion's inverse)."""
-    if o.vel is None or not np.all(np.isfinite(o.pos[i])) or not np.all(np.isfinite(o.vel[i])):
-        return None
-    (px, py), (vx, vy) = o.pos[i], o.vel[i]
-    speed, yaw = ego.get(int(o.frames[i]), (0.0, 0.0))
-    return np.array([vx - (-speed + yaw * py), vy + yaw * px])
-
-
 def truth_course(movers: list[TruthObject], frame: int, ego: dict[int, tuple[float, float]],
                  frame_times: NDArray[np.float64], mount: MountConfig, margin_m: float,
                  caution_s: float) -> tuple[int | None, float | None, float | None]:
@@ -195,20 +190,20 @@ def truth_course(movers: list[TruthObject], frame: int, ego: dict[int, tuple[flo
     (None, None, None) when no mover has a position and velocity then."""
     best: tuple[int | None, float | None, float | None] = (None, None, None)
     best_key = (2, 0.0)
+    k = frame - COURSE_ACCEL_FRAMES
+    speed, yaw = ego.get(frame, (0.0, 0.0))   # unknown: the relative velocity, in the vehicle frame
     for o in movers:
         i = o.at(frame)
-        ground = None if i is None else _ground_velocity(o, i, ego)
+        ground = None if i is None else _ground_velocity(o, i, speed, yaw)
         if i is None or ground is None:
             continue
         accel = 0.0
-        j = o.at(frame - COURSE_ACCEL_FRAMES)
-        before = None if j is None else _ground_velocity(o, j, ego)
-        if j is not None and before is not None and 0 <= frame - COURSE_ACCEL_FRAMES < len(frame_times) \
-                and frame < len(frame_times):
-            dt = float(frame_times[frame] - frame_times[frame - COURSE_ACCEL_FRAMES])
-            if dt > 0.0:
-                accel = (float(np.hypot(*ground)) - float(np.hypot(*before))) / dt
-        speed, yaw = ego.get(frame, (0.0, 0.0))
+        j = o.at(k)
+        before = None if j is None else _ground_velocity(o, j, *ego.get(k, (0.0, 0.0)))
+        if before is not None and 0 <= k and frame < len(frame_times) \
+                and frame_times[frame] > frame_times[k]:
+            dt = float(frame_times[frame] - frame_times[k])
+            accel = (math.hypot(*ground) - math.hypot(*before)) / dt
         path = predict_path(o.pos[i], ground, speed, yaw, mount, margin_m, 0.0, caution_s, accel)
         key = (0, path.ttc) if path.ttc is not None else (1, path.closest)   # soonest, else nearest
         if key < best_key:

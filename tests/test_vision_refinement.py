@@ -16,6 +16,7 @@ from appliance.vision.epipolar import (
     essential_matrices,
     heading_from_polar,
     polar_from_translation,
+    rays,
     transfer_residuals,
     translation_from_theta,
 )
@@ -97,8 +98,7 @@ def test_essential_matrices_are_the_cross_product_of_t_with_the_rotation() -> No
         np.testing.assert_allclose(e, np.cross(t[None, :], R.T).T, atol=1e-12)
     # and b . E a = 0 for the rays of the true motion's static points
     x_prev, x_cur = correspondences(R_TRUE, T_TRUE)
-    a = np.column_stack([(x_prev - [CAM.cx, CAM.cy]) / [CAM.fx, CAM.fy], np.ones(len(x_prev))])
-    b = np.column_stack([(x_cur - [CAM.cx, CAM.cy]) / [CAM.fx, CAM.fy], np.ones(len(x_cur))])
+    a, b = rays(x_prev, K), rays(x_cur, K)
     E_true = essential_matrices(truth_theta(R_TRUE, T_TRUE)[None, :])[0]
     assert np.max(np.abs(np.einsum("mi,ij,mj->m", b, E_true, a))) < 1e-12
 

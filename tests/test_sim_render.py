@@ -324,3 +324,70 @@ def test_wrapping_textures_tile_seamlessly_at_every_level() -> None:
     seam = np.abs(noise[:, 0] - noise[:, -1]).mean()
     inner = np.abs(np.diff(noise, axis=1)).mean()
     assert seam < 1.5 * inner  # no discontinuity where the generated noise wraps
+
+
+def _left_edges(frames: list[np.ndarray], rows: slice, level: float) -> np.ndarray:
+    """Per frame, where a dark object's left edge crosses ``level`` (px, sub-pixel, linear
+    between the two pixels around the crossing), averaged over ``rows``."""
+    out = []
+    for f in frames:
+        xs = []
+        for row in f[rows].astype(float):
+            c = int(np.argmax(row < level))
+            xs.append(c - 1 + (row[c - 1] - level) / (row[c - 1] - row[c]))
+        out.append(np.mean(xs))
+    return np.array(out)
+
+
+def test_a_movers_silhouette_moves_smoothly_not_in_half_pixel_steps() -> None:
+    """A dark pedestrian-sized face 20 m ahead in front of a bright wall, moving 0.1 px per
+    frame across the image. Drawn as a static face (binary masks at twice the resolution)
+    its edge stands still and then jumps half a pixel; drawn as a mover (its coverage of
+    each pixel) it moves 0.1 px every frame, as on a sensor."""
+    textures = _textures()
+    wall = FaceSet.from_quads([rect_face(np.array([30.0, 0.0, 3.0]), np.array([-1.0, 0, 0]),
+                                         np.array([0.0, 0, -1.0]), 30.0, 10.0, FLAT, textures,
+                                         obj=2, value=200.0)])
+    step_m = 0.1 * 20.0 / CAM.fx          # 0.1 px per frame at 20 m
+
+    def person(k: int) -> FaceSet:
+        return FaceSet.from_quads([rect_face(np.array([20.0, 0.3 - k * step_m, 0.9]),
+                                             np.array([-1.0, 0, 0]), np.array([0.0, 0, -1.0]),
+                                             0.6, 1.7, FLAT, textures, obj=1, value=40.0)])
+
+    r = Renderer(CAM, textures, 0)
+    soft = [r.render(_camera_from_world(), [wall], [person(k)])[0] for k in range(11)]
+    hard = [r.render(_camera_from_world(), [wall, person(k)])[0] for k in range(11)]
+    rows = slice(230, 260)
+    soft_steps = np.diff(_left_edges(soft, rows, 120.0))
+    hard_steps = np.diff(_left_edges(hard, rows, 120.0))
+    np.testing.assert_allclose(soft_steps, 0.1, atol=0.04)
+    assert np.count_nonzero(np.abs(hard_steps) < 0.02) >= 5    # standing still ...
+    assert np.max(np.abs(hard_steps)) > 0.4                    # ... then jumping
+    # the interior is drawn as before, and the pixel centres it covers carry its id
+    _, ids_soft = r.render(_camera_from_world(), [wall], [person(3)])
+    _, ids_hard = r.render(_camera_from_world(), [wall, person(3)])
+    np.testing.assert_array_equal(ids_soft, ids_hard)
+    np.testing.assert_array_equal(soft[3][rows, 330:338], hard[3][rows, 330:338])
+
+
+def test_a_mover_hidden_by_a_static_object_does_not_show_through() -> None:
+    textures = _textures()
+    car = box_faces(4.4, 1.8, 1.45, _skin(2), textures, 101).transformed(
+        np.eye(3), np.array([28.0, -2.6, 0])
+    )
+    wall = box_faces(30.0, 1.0, 12.0, _skin(1), textures, 1001).transformed(
+        np.eye(3), np.array([35.0, -7.5, 0])
+    )
+    ped = box_faces(0.35, 0.55, 1.2, _skin(2), textures, 1).transformed(
+        np.eye(3), np.array([33.0, -3.0, 0])
+    )
+    r = Renderer(CAM, textures, 0)
+    with_ped, ids = r.render(_camera_from_world(), [wall, car], [ped])
+    without, ids_without = r.render(_camera_from_world(), [wall, car])
+    np.testing.assert_array_equal(with_ped, without)
+    np.testing.assert_array_equal(ids, ids_without)
+    # in the open, the same pedestrian is drawn, over the wall
+    seen, ids_seen = r.render(_camera_from_world(), [wall], [ped])
+    assert np.count_nonzero(ids_seen == 1) > 50
+    assert np.count_nonzero(seen != r.render(_camera_from_world(), [wall])[0]) > 50

@@ -339,13 +339,13 @@ class SimulatedDrive:
         tau = float(self.tau(t))
         T_wc = self.camera_pose(tau)
         T_cw = np.asarray(np.linalg.inv(T_wc), np.float64)
-        faces = [self.static_faces]
+        movers = []
         for mv in self.movers:
             p = mv.trajectory.position(tau)
-            faces.append(
+            movers.append(
                 mv.body.placed(float(p[0]), float(p[1]), float(mv.trajectory.heading(tau)))
             )
-        image, ids = renderer.render(T_cw, faces)
+        image, ids = renderer.render(T_cw, [self.static_faces], movers)
         pose = [[round(float(v), 10) for v in row] for row in T_wc]
         truth = {"camera_pose": pose, "objects": self._object_truth(tau, T_cw, ids)}
         return t, T_wc, image, ids, truth

@@ -361,7 +361,10 @@ def test_a_movers_silhouette_moves_smoothly_not_in_half_pixel_steps() -> None:
     rows = slice(230, 260)
     soft_steps = np.diff(_left_edges(soft, rows, 120.0))
     hard_steps = np.diff(_left_edges(hard, rows, 120.0))
-    np.testing.assert_allclose(soft_steps, 0.1, atol=0.04)
+    # every frame a step (its size quantised by the coverage mask's 8 x 8 samples per pixel
+    # here, and by the edge measure), and 1 px over the ten frames
+    assert np.all((soft_steps > 0.03) & (soft_steps < 0.2))
+    assert abs(np.sum(soft_steps) - 1.0) < 0.05
     assert np.count_nonzero(np.abs(hard_steps) < 0.02) >= 5    # standing still ...
     assert np.max(np.abs(hard_steps)) > 0.4                    # ... then jumping
     # the interior is drawn as before, and the pixel centres it covers carry its id

@@ -188,10 +188,10 @@ def _camera_from_world(y: float = 0.0) -> np.ndarray:
     return np.linalg.inv(vehicle_from_camera((0.0, y, 1.3), 0.0, 0.0, 0.0))
 
 
-def test_occlusion_is_by_depth_where_a_painters_order_fails() -> None:
-    textures = _textures()
-    # a long facade whose nearest point is nearer than the car parked in front of it (a painter's
-    # order by distance would draw the facade over the car), and a pedestrian hidden by the car
+def _street(textures: list[tx.Texture]) -> tuple[FaceSet, FaceSet, FaceSet]:
+    """A long facade whose nearest point is nearer than the car parked in front of it (a
+    painter's order by distance would draw the facade over the car), and a pedestrian hidden
+    by the car: (facade, car, pedestrian), object ids 1001, 101 and 1."""
     wall = box_faces(30.0, 1.0, 12.0, _skin(1), textures, 1001).transformed(
         np.eye(3), np.array([25.0, -7.5, 0])
     )
@@ -201,6 +201,12 @@ def test_occlusion_is_by_depth_where_a_painters_order_fails() -> None:
     ped = box_faces(0.35, 0.55, 1.2, _skin(2), textures, 1).transformed(
         np.eye(3), np.array([33.0, -3.0, 0])
     )
+    return wall, car, ped
+
+
+def test_occlusion_is_by_depth_where_a_painters_order_fails() -> None:
+    textures = _textures()
+    wall, car, ped = _street(textures)
     for sets in ([wall, car, ped], [ped, car, wall]):
         _, ids = Renderer(CAM, textures, 0).render(_camera_from_world(), sets)
         u, v = CAM.project(np.array([[2.6, 0.6, 28.0 - 2.2]]))[
@@ -376,15 +382,7 @@ def test_a_movers_silhouette_moves_smoothly_not_in_half_pixel_steps() -> None:
 
 def test_a_mover_hidden_by_a_static_object_does_not_show_through() -> None:
     textures = _textures()
-    car = box_faces(4.4, 1.8, 1.45, _skin(2), textures, 101).transformed(
-        np.eye(3), np.array([28.0, -2.6, 0])
-    )
-    wall = box_faces(30.0, 1.0, 12.0, _skin(1), textures, 1001).transformed(
-        np.eye(3), np.array([35.0, -7.5, 0])
-    )
-    ped = box_faces(0.35, 0.55, 1.2, _skin(2), textures, 1).transformed(
-        np.eye(3), np.array([33.0, -3.0, 0])
-    )
+    wall, car, ped = _street(textures)
     r = Renderer(CAM, textures, 0)
     with_ped, ids = r.render(_camera_from_world(), [wall, car], [ped])
     without, ids_without = r.render(_camera_from_world(), [wall, car])

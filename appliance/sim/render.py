@@ -153,7 +153,7 @@ class Renderer:
         """Image (H, W) uint8 and object ids (H, W) uint16 seen by a camera at this pose.
 
         ``camera_from_world`` is the 4x4 inverse of the camera pose. ``movers``: faces drawn
-        last, over the finished scene, with anti-aliased silhouettes (:meth:`_draw_movers`).
+        last, over the finished scene, with anti-aliased silhouettes (:meth:`_draw_mover`).
         """
         R = np.asarray(camera_from_world[:3, :3], float)
         t = np.asarray(camera_from_world[:3, 3], float)
@@ -168,7 +168,7 @@ class Renderer:
         # test then skips the warps of hidden faces)
         jobs.sort(key=lambda j: (j.layer, j.key))
         for job in jobs:
-            self._draw_face(img, ids, job)
+            self._draw_face(img, ids, self.zbuf, job)
         placed = [self._jobs(fs, R, t) for fs in movers if len(fs)]
         for mover in sorted((m for m in placed if m), key=lambda m: -min(j.key for j in m)):
             self._draw_mover(img, ids, mover)   # far to near: a nearer mover covers a farther one
@@ -295,7 +295,8 @@ class Renderer:
             bounds = (min(us), min(vs), max(us), max(vs))
         return np.rint(np.array(uv) * _SUB).astype(np.int32), bounds
 
-    def _draw_face(self, img: NDArray[np.uint8], ids: NDArray[np.uint16], job: _Job) -> None:
+    def _draw_face(self, img: NDArray[np.uint8], ids: NDArray[np.uint16],
+                   zbuf: NDArray[np.float32], job: _Job) -> None:
         s = self.s
         clipped = self._clipped(job)
         if clipped is None:
@@ -310,8 +311,26 @@ class Renderer:
             if flat is not None:
                 cv2.fillPoly(img, [flat[0]], int(round(val)), cv2.LINE_AA, 4)
             return
-        for slab, z_rep in self._slabs(poly, zmin, zmax):
-            self._draw_slab(img, ids, job, slab, z_rep)
+        k0 = max(bisect.bisect_right(self._slab_list, zmin) - 1, 0)
+        k1 = bisect.bisect_left(self._slab_list, zmax)
+        bounds = self._slab_list[k0 : k1 + 1]
+        if len(bounds) < 2:
+            bounds = [zmin, zmax]
+        bounds[0], bounds[-1] = zmin, zmax
+        if (
+            len(bounds) > 2 and bounds[-1] / bounds[-2] < 1.08
+        ):  # merge slivers into their neighbours
+            del bounds[-2]
+        if len(bounds) > 2 and bounds[1] / bounds[0] < 1.08:
+            del bounds[1]
+        for j in range(len(bounds) - 1):
+            slab = poly
+            if j > 0:
+                slab = clip_z(slab, bounds[j], True)
+            if j < len(bounds) - 2:
+                slab = clip_z(slab, bounds[j + 1], False)
+            if len(slab) >= 3:
+                self._draw_slab(img, ids, zbuf, job, slab, (bounds[j] * bounds[j + 1]) ** 0.5)
 
     def _draw_mover(self, img: NDArray[np.uint8], ids: NDArray[np.uint16],
                     jobs: list[_Job]) -> None:
@@ -350,13 +369,8 @@ class Renderer:
         if x1 <= x0 or y1 <= y0:
             return
         h, w = y1 - y0, x1 - x0
-        zbuf = self.zbuf
-        self.zbuf = self._mover_z
-        try:
-            for job in sorted(jobs, key=lambda j: j.key):
-                self._draw_face(self._mover_img, self._mover_ids, job)
-        finally:
-            self.zbuf = zbuf
+        for job in sorted(jobs, key=lambda j: j.key):
+            self._draw_face(self._mover_img, self._mover_ids, self._mover_z, job)
         mover_img = self._mover_img[y0:y1, x0:x1]
         mover_ids = self._mover_ids[y0:y1, x0:x1]
         mover_z = self._mover_z[y0:y1, x0:x1]
@@ -416,30 +430,6 @@ class Renderer:
             zmax = s.far_m
         return (poly, zmin, zmax) if len(poly) >= 3 else None
 
-    def _slabs(self, poly: list[Point], zmin: float, zmax: float) -> list[tuple[list[Point], float]]:
-        """The polygon cut into depth slabs, each with its representative depth."""
-        out: list[tuple[list[Point], float]] = []
-        k0 = max(bisect.bisect_right(self._slab_list, zmin) - 1, 0)
-        k1 = bisect.bisect_left(self._slab_list, zmax)
-        bounds = self._slab_list[k0 : k1 + 1]
-        if len(bounds) < 2:
-            bounds = [zmin, zmax]
-        bounds[0], bounds[-1] = zmin, zmax
-        if (
-            len(bounds) > 2 and bounds[-1] / bounds[-2] < 1.08
-        ):  # merge slivers into their neighbours
-            del bounds[-2]
-        if len(bounds) > 2 and bounds[1] / bounds[0] < 1.08:
-            del bounds[1]
-        for j in range(len(bounds) - 1):
-            slab = poly
-            if j > 0:
-                slab = clip_z(slab, bounds[j], True)
-            if j < len(bounds) - 2:
-                slab = clip_z(slab, bounds[j + 1], False)
-            if len(slab) >= 3:
-                out.append((slab, (bounds[j] * bounds[j + 1]) ** 0.5))
-        return out
 
     def _fog(self, z: float) -> float:
         s = self.s
@@ -449,6 +439,7 @@ class Renderer:
         self,
         img: NDArray[np.uint8],
         ids: NDArray[np.uint16],
+        zbuf: NDArray[np.float32],
         job: _Job,
         slab: list[Point],
         z_rep: float,
@@ -491,7 +482,7 @@ class Renderer:
             a, b = nx / (fx * d), ny / (fy * d)
             c = (nx * (x0 - cx) / fx + ny * (y0 - cy) / fy + nz) / d
             invz = cv2.addWeighted(self.col_grid[:h, :w], a, self.row_grid[:h, :w], b, c)
-            closer = cv2.compare(invz, self.zbuf[y0:y1, x0:x1], cv2.CMP_GT)
+            closer = cv2.compare(invz, zbuf[y0:y1, x0:x1], cv2.CMP_GT)
             cv2.bitwise_and(mask, closer, dst=mask)
             if not cv2.countNonZero(mask):
                 return
@@ -514,5 +505,5 @@ class Renderer:
                 )
         cv2.copyTo(warped, mask, img[y0:y1, x0:x1])
         if invz is not None:
-            cv2.copyTo(invz, mask, self.zbuf[y0:y1, x0:x1])
+            cv2.copyTo(invz, mask, zbuf[y0:y1, x0:x1])
             np.copyto(ids[y0:y1, x0:x1], job.obj, where=mask.view(bool))

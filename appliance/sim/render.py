@@ -394,13 +394,12 @@ class Renderer:
             for pts, _ in outlines:
                 cv2.fillPoly(fine, [(pts - offset) * f + (f - 1) * _SUB // 2], 255, cv2.LINE_8, 4)
             cover = cv2.resize(fine, (w, h), interpolation=cv2.INTER_AREA)[v, u] / 255.0
-            # band pixels no face centre covered take the mean of their drawn neighbours
-            d = drawn.astype(np.float32)
-            den = cv2.boxFilter(d, -1, (3, 3), normalize=False)[v, u]
             colour = mover_img[v, u].astype(np.float64)
             invz = mover_z[v, u].astype(np.float64)
             fringe = drawn[v, u] == 0
-            if np.any(fringe):
+            if np.any(fringe):  # band pixels no face centre covered: mean of drawn neighbours
+                d = drawn.astype(np.float32)
+                den = cv2.boxFilter(d, -1, (3, 3), normalize=False)[v, u]
                 num_c = cv2.boxFilter(mover_img.astype(np.float32) * d, -1, (3, 3),
                                       normalize=False)[v, u]
                 num_z = cv2.boxFilter(mover_z * d, -1, (3, 3), normalize=False)[v, u]
@@ -412,9 +411,9 @@ class Renderer:
         hit = own.view(bool)   # the id buffer keeps the centre sample, as for every face
         ids[y0:y1, x0:x1][hit] = mover_ids[hit]
         scene_z[hit] = mover_z[hit]
-        self._mover_img[y0:y1, x0:x1] = 0
-        self._mover_ids[y0:y1, x0:x1] = 0
-        self._mover_z[y0:y1, x0:x1] = 0.0
+        mover_img.fill(0)
+        mover_ids.fill(0)
+        mover_z.fill(0.0)
 
     def _clipped(self, job: _Job) -> tuple[list[Point], float, float] | None:
         """The face's polygon clipped to the near and far planes, with its depth range."""

@@ -216,6 +216,7 @@ class TrackingConfig:
     coast_cover_frames: int = _p(1, 100)
     coast_course_ratio: float = _p(0.0, 1.0, lo_open=True)
     coast_course_points: float = _p(0.0, 1000.0)
+    coast_course_seen_points: float = _p(0.0, 1000.0)
     coast_course_fraction: float = _p(0.0, 1.0)
     coast_bearing_std_px: float = _p(0.0, 100.0)
     outline_max_height_m: float = _p(0.0, 10.0)

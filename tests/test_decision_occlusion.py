@@ -287,3 +287,23 @@ def test_off_course_also_below_a_fraction_of_the_highest_count(default_config: C
     assert not _course((*walked, *slowed[:2]), fraction).off_course
     assert _course((*walked, *slowed[:3]), fraction).off_course
     assert _course((*walked, *slowed[:3]), fraction).course_peak == 50.0
+
+
+def test_a_head_counted_at_the_backgrounds_level_is_never_seen_and_never_lost(
+        default_config: Config) -> None:
+    """Nearside seed 2, the pedestrian 27 m away: its head band counted 4, 5, 6, 2, 2, 6, 4, 1
+    (background in the band alone counts 3-6). Seen on course at a median of 4, it was off
+    course at the first median of 2 and its correct coasted warning (TTC 2.6 s, truth 2.67 s)
+    was dropped. With coast_course_seen_points 8 such counts never make it seen, so it coasts
+    on; a head counted 12-73 (stop-behind seed 2 walking hidden) is seen, and lost when the
+    count falls to the background's."""
+    base = {"coast_cover_frames": 5, "coast_course_points": 3, "coast_course_fraction": 0.25}
+    old = default_config.with_overrides({"tracking": {**base, "coast_course_seen_points": 0}})
+    cfg = default_config.with_overrides({"tracking": {**base, "coast_course_seen_points": 8}})
+    far_head = (4.0, 5.0, 6.0, 2.0, 2.0, 6.0, 4.0, 1.0)
+    assert _course(far_head, old).off_course                         # the fault
+    lt = _course(far_head, cfg)
+    assert not lt.seen_on_course and not lt.off_course
+    walked = (17.0, 44.0, 44.0, 24.0, 12.0, 27.0, 36.0, 73.0)
+    assert _course(walked, cfg).seen_on_course
+    assert _course((*walked, 1.0, 3.0, 2.0), cfg).off_course

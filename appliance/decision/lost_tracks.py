@@ -60,8 +60,10 @@ class LostTrack:
 
         While the median of its last ``coast_cover_frames`` measured counts is at least
         ``coast_course_points`` and ``coast_course_fraction`` of its highest median so far (a
-        head seen closer covers more points), its head is seen keeping its bearing above the
-        occluder. Once it was, and the median then falls below that, the track is off course
+        head seen closer covers more points), its head keeps its bearing above the occluder;
+        it counts as seen there once the median also reaches ``coast_course_seen_points``
+        (a few points of background alone count 3-6). Once it was seen, and the median then
+        falls below the first bar, the track is off course
         for good: what showed of it stopped keeping its bearing (a pedestrian who stopped
         behind a parked car), and its coasted state, which cannot see that, is no longer
         assessed. A track whose head was never seen (an occluder taller than it) coasts as
@@ -75,7 +77,9 @@ class LostTrack:
             return replace(self, course=course)
         median = float(np.median(last))
         on = median >= max(need, cfg.tracking.coast_course_fraction * self.course_peak)
-        return replace(self, course=course, seen_on_course=self.seen_on_course or on,
+        # seen at all only above what background in the band counts on its own (3-6 points)
+        seen = on and median >= cfg.tracking.coast_course_seen_points
+        return replace(self, course=course, seen_on_course=self.seen_on_course or seen,
                        off_course=self.off_course or (self.seen_on_course and not on),
                        course_peak=max(self.course_peak, median))
 

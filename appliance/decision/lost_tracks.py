@@ -61,13 +61,13 @@ class LostTrack:
         While the median of its last ``coast_cover_frames`` measured counts is at least
         ``coast_course_points`` and ``coast_course_fraction`` of its highest median so far (a
         head seen closer covers more points), its head keeps its bearing above the occluder;
-        it counts as seen there once the median also reaches ``coast_course_seen_points``
-        (a few points of background alone count 3-6). Once it was seen, and the median then
-        falls below the first bar, the track is off course
-        for good: what showed of it stopped keeping its bearing (a pedestrian who stopped
-        behind a parked car), and its coasted state, which cannot see that, is no longer
-        assessed. A track whose head was never seen (an occluder taller than it) coasts as
-        before."""
+        it counts as seen there once the median also reaches ``coast_course_seen_points`` (a
+        few points of background alone count 3-6). Once it was seen, and the median then
+        falls below the first bar, the track is off course for good: what showed of it
+        stopped keeping its bearing (a pedestrian who stopped behind a parked car), and its
+        coasted state, which cannot see that, is no longer assessed. A track whose head was
+        never seen (an occluder taller than it, or too far to count above the background)
+        coasts as before."""
         frames = cfg.tracking.coast_cover_frames
         course = (*self.course[1 - frames:], count)
         last = np.asarray(course, dtype=np.float64)

@@ -242,6 +242,11 @@ def test_coasted_course_from_a_coasted_track(default_config: Config) -> None:
     assert math.isnan(coasted_course(tr, foot, 1.0, (prev, cur), halt, *args[1:])[0])
 
 
+# stop-behind seed 2's head band: walking on hidden, then slowing down (a few points background)
+STOP_BEHIND_WALKED = (17.0, 44.0, 44.0, 24.0, 12.0, 27.0, 36.0, 73.0, 50.0, 43.0, 56.0, 34.0, 29.0)
+STOP_BEHIND_SLOWED = (1.0, 3.0, 2.0, 6.0, 4.0, 4.0, 0.0, 15.0, 6.0)
+
+
 def _course(counts: tuple[float, ...], cfg: Config) -> LostTrack:
     lt = LostTrack(id=1, cues=TrackCues())
     for c in counts:
@@ -278,8 +283,7 @@ def test_off_course_also_below_a_fraction_of_the_highest_count(default_config: C
     the pedestrian walked on hidden, then 1-8 once it slowed down, a few of them background.
     Against 3 points alone it would stay on course; against a quarter of its highest median
     (50: 12.5) it is off course at the third frame of the slow-down."""
-    walked = (17.0, 44.0, 44.0, 24.0, 12.0, 27.0, 36.0, 73.0, 50.0, 43.0, 56.0, 34.0, 29.0)
-    slowed = (1.0, 3.0, 2.0, 6.0, 4.0, 4.0, 0.0, 15.0, 6.0)
+    walked, slowed = STOP_BEHIND_WALKED, STOP_BEHIND_SLOWED
     base = {"coast_cover_frames": 5, "coast_course_points": 3}
     points = default_config.with_overrides({"tracking": {**base, "coast_course_fraction": 0.0}})
     fraction = default_config.with_overrides({"tracking": {**base, "coast_course_fraction": 0.25}})
@@ -304,6 +308,5 @@ def test_a_head_counted_at_the_backgrounds_level_is_never_seen_and_never_lost(
     assert _course(far_head, old).off_course                         # the fault
     lt = _course(far_head, cfg)
     assert not lt.seen_on_course and not lt.off_course
-    walked = (17.0, 44.0, 44.0, 24.0, 12.0, 27.0, 36.0, 73.0)
-    assert _course(walked, cfg).seen_on_course
-    assert _course((*walked, 1.0, 3.0, 2.0), cfg).off_course
+    assert _course(STOP_BEHIND_WALKED, cfg).seen_on_course
+    assert _course((*STOP_BEHIND_WALKED, *STOP_BEHIND_SLOWED[:3]), cfg).off_course

@@ -118,6 +118,27 @@ def test_collision_run_lead_time_false_warnings_and_errors(tmp_path: Path,
     assert r["targets"]["ttc_error"] is True and r["targets"]["detection"] is True
     saved = json.loads((run / "evaluation.json").read_text())
     assert saved["lead_time_s"] == r["lead_time_s"]
+
+
+def test_distance_error_is_measured_against_the_footprint_gap_where_the_truth_has_it(
+        tmp_path: Path, default_config: Config) -> None:
+    """A car ahead is reported at the gap to its near side; its ``pos_vehicle`` is its centre,
+    half its length (here 2.2 m) farther. With ``gap_m`` in the truth the estimate is compared
+    with the gap; without it, with the centre's (older recordings)."""
+    rec = write_recording(tmp_path / "rec", default_config)
+    data = json.loads((rec / "truth.json").read_text())
+    for f, row in data["objects"][0]["frames"].items():
+        remaining = CT - (T0 + int(f) / FPS)
+        row["pos_vehicle"] = [3.9 + 2.2 + 10.0 * remaining, 0.0]
+        row["gap_m"] = 10.0 * remaining
+    (rec / "truth.json").write_text(json.dumps(data))
+    run = collision_run(tmp_path / "run")   # distance_m: 0.95 x the near-side gap
+    assert evaluate_run(rec, run)["distance_rel_error_median"] == pytest.approx(0.05, abs=1e-3)
+    for row in data["objects"][0]["frames"].values():
+        del row["gap_m"]
+    (rec / "truth.json").write_text(json.dumps(data))
+    without = evaluate_run(rec, run)["distance_rel_error_median"]
+    assert without > 0.15   # against the centre: |0.95 g - (g + 2.2)| / (g + 2.2), 0.21 at g = 11 m
     png = (run / "timeline.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
 

@@ -82,7 +82,7 @@ def test_recording_reads_back_with_the_truth_of_the_spec(tmp_path: Path) -> None
     assert mover["class"] == "car" and mover["moving"] is True
     assert len(mover["frames"]) == rec.n_frames
     for rec_k in mover["frames"].values():
-        assert set(rec_k) == {"bbox", "visible", "pos_vehicle", "vel_vehicle"}
+        assert set(rec_k) == {"bbox", "visible", "pos_vehicle", "vel_vehicle", "gap_m"}
         u0, v0, u1, v1 = rec_k["bbox"]
         assert 0 <= u0 <= u1 <= 639 and 0 <= v0 <= v1 <= 479
         assert 0.0 <= rec_k["visible"] <= 1.0
@@ -222,6 +222,8 @@ def test_collision_t_is_where_pos_and_vel_lead(scenario: str) -> None:
         )
         assert g[0] > 0.5 and np.any(g == 0.0)
         assert step.t + dts[np.argmax(g == 0.0)] == pytest.approx(ct, abs=0.005)
+        # gap_m is that footprint's distance to the outline, the near side's, not the centre's
+        assert rec["gap_m"] == pytest.approx(g[0], abs=0.01)
 
 
 @pytest.mark.parametrize("scenario", ["pedestrian_passes_front", "pedestrian_passes_behind"])

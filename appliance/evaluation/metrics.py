@@ -47,10 +47,11 @@ Definitions (where the issue is silent, what a validation engineer expects):
 * **TTC / distance error:** medians over the frames of the last 3 s before
   ``collision_t`` of |estimate - truth| / truth for the track of the colliding
   object; the truth TTC is ``collision_t - t``, the truth distance is the gap
-  between the ego outline and the object's ``pos_vehicle`` (the same definition
-  the appliance reports). Frames closer than 0.2 s / 0.5 m are left out (the
-  ratio is meaningless there); ``*_coverage`` is the fraction of the window's
-  frames that had an estimate.
+  between the ego outline and the object's footprint (``gap_m``, what the
+  appliance's ``distance_m`` is: the gap to the object's near side; recordings
+  without it fall back to the footprint's centre ``pos_vehicle``). Frames closer
+  than 0.2 s / 0.5 m are left out (the ratio is meaningless there);
+  ``*_coverage`` is the fraction of the window's frames that had an estimate.
 """
 
 from __future__ import annotations
@@ -63,7 +64,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from appliance.config import MountConfig
-from appliance.decision.threat import outline_gap, predict_path
+from appliance.decision.threat import predict_path
 from appliance.evaluation.runfiles import Box, TrackRow, Truth, TruthObject, WarningRow
 
 IOU_MATCH = 0.3
@@ -393,7 +394,7 @@ def _colliding_object(movers: list[TruthObject], ct: float, frame_times: NDArray
         if len(ok) == 0:
             continue
         i = ok[np.argmin(np.abs(o.frames[ok] - f))]
-        gap = float(outline_gap(o.pos[i], mount, 0.0))
+        gap = float(o.gap_m(i, mount)[0])
         if gap < best_gap:
             best, best_gap = o, gap
     return best
@@ -424,7 +425,7 @@ def _last_window_errors(o: TruthObject, ct: float, match: dict[int, dict[int, Tr
         i = o.at(f)
         if tr.distance_m is not None and i is not None and np.all(np.isfinite(o.pos[i])):
             n_dist += 1
-            d_true = float(outline_gap(o.pos[i], mount, 0.0))
+            d_true = float(o.gap_m(i, mount)[0])
             if d_true >= 0.5:
                 dist_err.append(abs(tr.distance_m - d_true) / d_true)
     def cov(n: int) -> float | None:

@@ -14,7 +14,6 @@ import numpy as np  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
 
 from appliance.config import MountConfig  # noqa: E402
-from appliance.decision.threat import outline_gap  # noqa: E402
 from appliance.evaluation.runfiles import TrackRow, Truth, WarningRow  # noqa: E402
 
 
@@ -53,7 +52,7 @@ def plot_timeline(path: Path, truth: Truth, tracks: list[TrackRow], warnings: li
             continue
         ok = np.all(np.isfinite(o.pos), axis=1) & (o.frames < len(frame_times))
         if np.any(ok):
-            d = outline_gap(o.pos[ok], mount, 0.0)
+            d = o.gap_m(np.flatnonzero(ok), mount)
             ax_d.plot(frame_times[o.frames[ok]] - t0, d, "-", color="0.3", lw=1.5,
                       label=f"truth {o.cls} {o.id}")
     ax_ttc.set_ylabel("TTC (s)")

@@ -15,6 +15,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from appliance.config import MountConfig
+from appliance.decision.threat import outline_gap
 from appliance.errors import UsageError
 
 Box = tuple[float, float, float, float]
@@ -56,6 +58,19 @@ class TruthObject:
     visible: NDArray[np.float64]  # (N,)
     pos: NDArray[np.float64]  # (N, 2), NaN where unknown
     vel: NDArray[np.float64] | None = None  # (N, 2) m/s relative to the ego vehicle, NaN unknown
+    gap: NDArray[np.float64] | None = None  # (N,) m footprint to ego outline (``gap_m``), NaN unknown
+
+    def gap_m(self, rows: NDArray[np.int64] | int, mount: MountConfig) -> NDArray[np.float64]:
+        """True distance (m) to the ego outline at row(s) ``rows``, as the appliance's
+        ``distance_m`` means it: the footprint's ``gap_m`` where the truth has it, else the
+        gap of the footprint's centre ``pos_vehicle`` (recordings without ``gap_m``; for a
+        car ahead that is half its length too far)."""
+        idx = np.atleast_1d(np.asarray(rows, dtype=np.int64))
+        centre = outline_gap(self.pos[idx], mount, 0.0)
+        if self.gap is None:
+            return np.asarray(centre, dtype=np.float64)
+        g = self.gap[idx]
+        return np.where(np.isfinite(g), g, centre)
 
     def at(self, frame: int) -> int | None:
         """Row index of ``frame`` or None."""
@@ -172,9 +187,12 @@ def parse_truth(data: dict[str, Any], where: str) -> Truth:
                             for _, v in items], dtype=np.float64)
         pos = _vectors(items, "pos_vehicle", where, key)
         vel = _vectors(items, "vel_vehicle", where, key)
+        gap = np.array([np.nan if v.get("gap_m") is None else
+                        _num(v.get("gap_m"), where, f"{key}.frames.{f}.gap_m", optional=False)
+                        for f, v in items], dtype=np.float64)
         objects.append(TruthObject(id=int(obj.get("id", k)), cls=str(obj.get("class", "object")),
                                    moving=bool(obj.get("moving", True)), frames=frames, bbox=bbox,
-                                   visible=visible, pos=pos, vel=vel))
+                                   visible=visible, pos=pos, vel=vel, gap=gap))
     co = data.get("collision_object")
     cam_frames, centres = _camera_centres(data.get("camera_poses"), where)
     return Truth(scenario=str(data.get("scenario", "?")), collision=collision, collision_t=ct,

@@ -25,7 +25,14 @@ from appliance.config import Config, load_config, resource_path
 from appliance.errors import UsageError
 from appliance.recording import CanDecoding, RecordingMeta
 from appliance.sim import sensors
-from appliance.sim.collision import Vehicle, collision_time, relative_pose, relative_velocity
+from appliance.sim.collision import (
+    Vehicle,
+    collision_time,
+    footprint_corners,
+    gap,
+    relative_pose,
+    relative_velocity,
+)
 from appliance.sim.effects import Effects, EffectsPipeline
 from appliance.sim.ego import BodyBounce, EgoPath, world_from_vehicle
 from appliance.sim.materials import TextureBank
@@ -301,9 +308,13 @@ class SimulatedDrive:
             view = project_box(self.camera, T_cw, corners)
             if view is None:
                 continue
-            centre, _ = relative_pose(self.path, mv.trajectory, tau_a)
+            centre, heading = relative_pose(self.path, mv.trajectory, tau_a)
             vel = relative_velocity(self.path, mv.trajectory, tau_a)
-            out[str(mv.body.obj)] = truth_record(view, ids, mv.body.obj, centre[0], vel[0])
+            length, width = mv.body.size[0], mv.body.size[1]
+            g = gap(footprint_corners(centre, heading, length, width), self.vehicle)
+            out[str(mv.body.obj)] = truth_record(
+                view, ids, mv.body.obj, centre[0], vel[0], gap_m=float(g[0])
+            )
         if not self.parked:
             return out
         # parked cars: a quick vectorised test first, the exact projection only for candidates

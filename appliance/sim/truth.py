@@ -153,12 +153,26 @@ def boxes_near_image(
 
 
 def truth_record(
-    view: BoxView, ids: NDArray[np.uint16], obj: int, pos: FloatArray, vel: FloatArray
+    view: BoxView,
+    ids: NDArray[np.uint16],
+    obj: int,
+    pos: FloatArray,
+    vel: FloatArray,
+    gap_m: float | None = None,
 ) -> dict[str, Any]:
-    """One object's entry in a frame of ``truth.json`` (bbox px, visible, vehicle-frame m, m/s)."""
-    return {
+    """One object's entry in a frame of ``truth.json`` (bbox px, visible, vehicle-frame m, m/s).
+
+    ``pos_vehicle`` is the centre of the object's footprint; ``gap_m`` (written for movers, an
+    addition to the spec's keys) is the distance between the footprint and the ego outline,
+    what the appliance's ``distance_m`` estimates: for a car ahead it is half the car's length
+    shorter than the gap to its centre, and 0 when they touch.
+    """
+    out = {
         "bbox": [round(float(b), 2) for b in view.bbox],
         "visible": round(visible_fraction(view, ids, obj), 3),
         "pos_vehicle": [round(float(pos[0]), 4), round(float(pos[1]), 4)],
         "vel_vehicle": [round(float(vel[0]), 4), round(float(vel[1]), 4)],
     }
+    if gap_m is not None:
+        out["gap_m"] = round(float(gap_m), 4)
+    return out

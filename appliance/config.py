@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import math
 import tomllib
 import types
 import typing
@@ -424,11 +425,10 @@ def _check(value: Any, typ: Any, meta: Any, src: str, key: str) -> Any:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ConfigError(src, key, f"expected a number, got {value!r}")
         value = float(value)
-        if value != value:
+        if math.isnan(value):
             raise ConfigError(src, key, "NaN is not allowed")
-    elif typ is str:
-        if not isinstance(value, str):
-            raise ConfigError(src, key, f"expected a string, got {value!r}")
+    elif typ is str and not isinstance(value, str):
+        raise ConfigError(src, key, f"expected a string, got {value!r}")
     choices = meta.get("choices", ())
     if choices and value not in choices:
         raise ConfigError(src, key, f"{value!r} is not one of {', '.join(map(repr, choices))}")

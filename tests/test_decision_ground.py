@@ -32,6 +32,8 @@ from appliance.decision.scale_ttc import (
 from appliance.decision.threat import (
     bumper_ttc,
     fuse,
+    near_side_gap,
+    outline_gap,
     predict_path,
     significant_acceleration,
     significant_velocity,
@@ -166,6 +168,36 @@ def test_path_prediction_collision_and_near_miss(default_config: Config) -> None
     bend = predict_path(np.array([20.0, 4.0]), np.zeros(2), 10.0, 0.2, mount, 0.3, 0.3, 6.0)
     straight = predict_path(np.array([20.0, 4.0]), np.zeros(2), 10.0, 0.0, mount, 0.3, 0.3, 6.0)
     assert bend.ttc is not None and straight.ttc is None
+
+
+def test_distance_is_the_gap_of_the_near_side_across_the_line_of_sight(
+        default_config: Config) -> None:
+    """The near side: the segment through the ground contact along its image row (across the
+    optical axis), as wide as the box. Checked against the simulator's exact footprint gap
+    (collision.gap) of that segment (a footprint of width 0)."""
+    from appliance.sim.collision import Vehicle, footprint_corners, gap
+
+    mount = default_config.mount
+    ego = Vehicle(mount.vehicle_front_m, mount.vehicle_rear_m, mount.vehicle_width_m)
+    # a car straight ahead: its whole near side is as far as its centre (3.9 m front bumper)
+    assert near_side_gap(np.array([16.0, 0.3]), 0.9, mount) == pytest.approx(12.1, abs=1e-9)
+    # one crossing from the right 8 m beside the path: its near end, 2 m nearer the path
+    assert near_side_gap(np.array([16.0, -8.0]), 2.0, mount) == pytest.approx(
+        math.hypot(12.1, 8.0 - 2.0 - 0.9), abs=1e-9)
+    rng = np.random.default_rng(3)
+    closer = 0
+    for _ in range(200):
+        pos = np.array([rng.uniform(5.0, 40.0), rng.uniform(-20.0, 20.0)])
+        radius = float(rng.uniform(0.2, 2.5))
+        pan = float(rng.uniform(-0.5, 0.5))
+        heading = pan + math.pi / 2   # the segment across the optical axis
+        exact = float(gap(footprint_corners(pos[None], np.array([heading]), 2 * radius, 0.0),
+                          ego)[0])
+        centre = float(outline_gap(pos, mount, 0.0))
+        got = near_side_gap(pos, radius, mount, pan)
+        assert exact - 1e-9 <= got <= min(exact + radius / 32, centre) + 1e-9
+        closer += got < centre - 0.05
+    assert closer > 100   # beside the car's path the near side is nearer than the centre
 
 
 def looming_points(center: tuple[float, float], ratio: float, n: int = 30, seed: int = 0

@@ -73,8 +73,8 @@ from appliance.decision.threat import (
     constant_bearing_course,
     fuse,
     ground_ttc_std,
+    near_side_gap,
     object_radius,
-    outline_gap,
     predict_path,
     scale_lateral_miss,
     significant_acceleration,
@@ -413,10 +413,10 @@ def assess(track: ImageTrack, cues: TrackCues, sensors: SensorSample, cfg: Confi
         # this frame, or hidden) adds uncertainty, not evidence that the object stopped
         vel = significant_velocity(g.velocity, g.measured_covariance,
                                    w.velocity_significance_sigmas, w.velocity_conditioning)
-        distance = float(outline_gap(pos, mount, 0.0))
         depth = float(pos[0] - mount.x_m)
         rng = float(np.hypot(pos[0] - mount.x_m, pos[1] - mount.y_m))
         radius = object_radius(track.size[0], rng, camera.fx)
+        distance = near_side_gap(pos, radius, mount, sensors.pan_rad)
         # braking or speeding up, where the state estimates it (ground.accel_min_speed_m_s)
         acc = significant_acceleration(vel, g.acceleration, g.P, w.acceleration_significance_sigmas)
         base = predict_path(pos, vel, speed, yaw, mount, w.corridor_margin_m, radius, w.horizon_s,

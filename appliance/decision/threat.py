@@ -67,6 +67,29 @@ def outline_gap(q: FloatArray, mount: MountConfig, margin: float) -> FloatArray:
     return np.hypot(dx, dy)
 
 
+NEAR_SIDE_SAMPLES = 33   # points along the near side: the gap is within radius / 32 of its minimum
+
+
+def near_side_gap(position: NDArray[np.floating], radius: float, mount: MountConfig,
+                  pan_rad: float = 0.0) -> float:
+    """Distance (m) from an object's near side to the ego outline: the segment through its
+    ground contact ``position`` (2,) (vehicle frame), ``radius`` m to either side along the
+    image row it stands on, i.e. across the camera's optical axis (panned ``pan_rad``, left +):
+    the width its box spans at that depth.
+
+    A car crossing at an angle shows the ground contact of its nearest corner at the bottom of
+    its box, but the box's centre column is that of its side: the centre's gap is the gap to a
+    point beside the corner, 8-12 % too long at 5-35 m on the simulator's crossing car. A car
+    straight ahead has its whole near side as far as its centre. Sampled
+    (``NEAR_SIDE_SAMPLES``); the gap to a rectangle is convex along a segment."""
+    p = np.asarray(position, dtype=np.float64)
+    if radius <= 0.0:
+        return float(outline_gap(p, mount, 0.0))
+    across = np.array([-math.sin(pan_rad), math.cos(pan_rad)])
+    s = np.linspace(-1.0, 1.0, NEAR_SIDE_SAMPLES)[:, None]
+    return float(np.min(outline_gap(p + s * radius * across, mount, 0.0)))
+
+
 def predict_path(position: NDArray[np.floating], velocity: NDArray[np.floating], speed: float,
                  yaw_rate: float, mount: MountConfig, margin: float, radius: float,
                  horizon_s: float, accel: float = 0.0) -> PathPrediction:

@@ -248,6 +248,7 @@ class GroundConfig:
     scale_from_outline: bool = _p()
     range_rate_from_scale: bool = _p()
     range_rate_std_gain: float = _p(0.0, 100.0, lo_open=True)
+    foot_halo_correction: bool = _p()
 
 
 @dataclass(frozen=True)

@@ -15,6 +15,7 @@ from appliance.decision.ground_state import (
     back_project,
     bearing_update,
     camera_pose,
+    foot_halo_shift,
     ground_contact,
     ground_init,
     ground_predict,
@@ -72,6 +73,20 @@ def test_back_projection_above_the_horizon_is_nan() -> None:
     pose = CameraPose((1.9, 0.0, 1.3), pitch=0.0, pan=0.0, tilt=0.0)
     xy = back_project(CAM, np.array([[320.0, 100.0], [320.0, 239.5], [320.0, 400.0]]), pose)
     assert np.all(np.isnan(xy[:2])) and np.all(np.isfinite(xy[2]))
+
+
+def test_the_foot_halo_is_there_only_where_the_road_below_flows_too_little_to_tell() -> None:
+    """foot_halo_shift: the road's own flow below a foot at range Z is f h d / Z^2 px; the
+    halo below the feet is half the window where that is short against sigma_p, none where
+    it is long, so the foot moves down by 0 far away and by the whole halo near."""
+    f, h, d, halo, sigma = 700.0, 1.3, 10.0 / 30.0, 4.5, 0.5
+    z_at_sigma = math.sqrt(f * h * d / sigma)     # the range where L = sigma (24.6 m)
+    assert foot_halo_shift(z_at_sigma, d, f, h, halo, sigma) == pytest.approx(
+        halo * (1.0 - math.exp(-0.5)))
+    shifts = [foot_halo_shift(z, d, f, h, halo, sigma) for z in (8.0, 15.0, 25.0, 40.0, 60.0)]
+    assert shifts[0] == pytest.approx(halo, abs=1e-3) and shifts[-1] < 0.1
+    assert all(a > b for a, b in zip(shifts, shifts[1:]))
+    assert foot_halo_shift(20.0, 0.0, f, h, halo, sigma) == 0.0   # standstill: no road flow
 
 
 def test_ground_contact_covariance_grows_with_range(default_config: Config) -> None:

@@ -42,6 +42,7 @@ from appliance.decision.ground_state import (
     bearing_rate_update,
     bearing_update,
     camera_pose,
+    foot_halo_shift,
     ground_absorb,
     ground_contact,
     ground_in_camera,
@@ -212,6 +213,13 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
         if not any(sides):
             u0, _, u1, _ = c.bbox
             contact = ground_contact(camera, (0.5 * (u0 + u1), c.foot_v - 0.5), pose, cfg.ground)
+            if contact is not None and cfg.ground.foot_halo_correction:
+                rng = math.hypot(contact.z[0] - pose.position[0], contact.z[1] - pose.position[1])
+                shift = foot_halo_shift(rng, _finite(sensors.speed_m_s) * dt, camera.fy,
+                                        pose.position[2], 0.5 * cfg.flow.window_px,
+                                        cfg.detection.sigma_p_px)
+                foot = min(c.foot_v + shift, float(camera.height))
+                contact = ground_contact(camera, (0.5 * (u0 + u1), foot - 0.5), pose, cfg.ground)
             if contact is not None:
                 rate = _bearing_rate(hist)
                 prior = None if rate is None else velocity_prior(

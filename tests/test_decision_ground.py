@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -85,7 +86,7 @@ def test_the_foot_halo_is_there_only_where_the_road_below_flows_too_little_to_te
         halo * (1.0 - math.exp(-0.5)))
     shifts = [foot_halo_shift(z, d, f, h, halo, sigma) for z in (8.0, 15.0, 25.0, 40.0, 60.0)]
     assert shifts[0] == pytest.approx(halo, abs=1e-3) and shifts[-1] < 0.1
-    assert all(a > b for a, b in zip(shifts, shifts[1:]))
+    assert all(a > b for a, b in itertools.pairwise(shifts))
     assert foot_halo_shift(20.0, 0.0, f, h, halo, sigma) == 0.0   # standstill: no road flow
 
 

@@ -214,8 +214,9 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
             u0, _, u1, _ = c.bbox
             contact = ground_contact(camera, (0.5 * (u0 + u1), c.foot_v - 0.5), pose, cfg.ground)
             if contact is not None and cfg.ground.foot_halo_correction:
-                rng = math.hypot(contact.z[0] - pose.position[0], contact.z[1] - pose.position[1])
-                shift = foot_halo_shift(rng, _finite(sensors.speed_m_s) * dt, camera.fy,
+                range_m = math.hypot(contact.z[0] - pose.position[0],
+                                     contact.z[1] - pose.position[1])
+                shift = foot_halo_shift(range_m, _finite(sensors.speed_m_s) * dt, camera.fy,
                                         pose.position[2], 0.5 * cfg.flow.window_px,
                                         cfg.detection.sigma_p_px)
                 foot = min(c.foot_v + shift, float(camera.height))

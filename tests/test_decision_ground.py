@@ -186,7 +186,7 @@ def test_path_prediction_collision_and_near_miss(default_config: Config) -> None
     assert bend.ttc is not None and straight.ttc is None
 
 
-def test_distance_is_the_gap_of_the_near_side_across_the_line_of_sight(
+def test_distance_is_the_gap_of_the_near_side_across_the_optical_axis(
         default_config: Config) -> None:
     """The near side: the segment through the ground contact along its image row (across the
     optical axis), as wide as the box. Checked against the simulator's exact footprint gap

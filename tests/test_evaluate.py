@@ -118,6 +118,8 @@ def test_collision_run_lead_time_false_warnings_and_errors(tmp_path: Path,
     assert r["targets"]["ttc_error"] is True and r["targets"]["detection"] is True
     saved = json.loads((run / "evaluation.json").read_text())
     assert saved["lead_time_s"] == r["lead_time_s"]
+    png = (run / "timeline.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
 
 
 def test_distance_error_is_measured_against_the_footprint_gap_where_the_truth_has_it(
@@ -139,8 +141,6 @@ def test_distance_error_is_measured_against_the_footprint_gap_where_the_truth_ha
     (rec / "truth.json").write_text(json.dumps(data))
     without = evaluate_run(rec, run)["distance_rel_error_median"]
     assert without > 0.15   # against the centre: |0.95 g - (g + 2.2)| / (g + 2.2), 0.21 at g = 11 m
-    png = (run / "timeline.png").read_bytes()
-    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
 
 
 def test_no_collision_counts_every_level2_and_level1_rate(tmp_path: Path,

@@ -4,7 +4,7 @@ The simulator writes each mover's ``gap_m`` (its footprint's distance to the ego
 ``evaluate`` scores ``distance_m`` against it over the last 3 s before contact. The ground
 contact's row decides that distance: with the cluster's whole halo taken off its foot
 (``ground.foot_halo_correction`` false) the contact sat 3-5 px above the car's bottom and the
-distance read about 8 % long; with the correction about 2 % (README, session 18).
+distance read about 8 % long; with the correction about 2 % (docs/measurements.md, session 18).
 """
 
 from __future__ import annotations

@@ -253,7 +253,7 @@ def _update_cues(cues: TrackCues | None, track: ImageTrack, t: float, dt: float,
         # the scale change of the outline's flows (the whole object), else of the cluster's
         # particles: a pedestrian's are a strip at its feet; a lead car's a strip along its bumper,
         # whose fit rests on the two side edges, which step together and make it bimodal while
-        # claiming a smaller variance than the outline's (README: braking lead car)
+        # claiming a smaller variance than the outline's (docs/measurements.md: braking lead car)
         m = None
         if cfg.ground.scale_from_outline and shape is not None \
                 and len(shape.positions) >= OUTLINE_MIN_POINTS:

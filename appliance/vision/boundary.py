@@ -13,7 +13,7 @@ capped at its neighbours' highest. The hope is that road users are larger than t
 pedestrian 6 px wide and 23 px tall has its upper and lower neighbours on its own body).
 Measured, they are often not: with 9 px the simulator's cyclist (a thin 20 x 19 px outline)
 and with 12 px pedestrians 23-26 px tall at ~50 m were found later, because the neighbours on
-their thin parts look static; the README has the figures. Off by default. The neighbours'
+their thin parts look static; docs/detection.md has the figures. Off by default. The neighbours'
 flow-length cue has no foot points (above the horizon only their direction test speaks).
 
 The second test (``stability_offset_px``, :func:`flow_spread`) asks how much the particle's
@@ -22,7 +22,7 @@ particle's answer on one pyramid level, and the largest change (less a floor) wi
 flow's std. A T-junction's answer moves with the window (0.6-1.0 px on the bend, 1.1 px on a
 synthetic corner), a rigid patch's does not (median 0.1-0.4 px on the simulator's movers). It
 halves the bend's false evidence, and it also weakens a pedestrian stepping out from behind a
-parked car, which is itself an occlusion edge; the README has the figures.
+parked car, which is itself an occlusion edge; docs/detection.md has the figures.
 """
 
 from __future__ import annotations

@@ -134,3 +134,44 @@ def test_ids_are_stable_and_sequential(default_config: Config) -> None:
     ids = [[t.id for t in s.tracks] for s in states]
     assert ids[3] == [1, 2]
     assert all(i == [1, 2] for i in ids[3:])
+
+
+def run_with_support(cfg: Config, frames: list[tuple[list[Cluster], list[Cluster]]]
+                     ) -> list[TrackerState]:
+    state, out = TrackerState(), []
+    for clusters, support in frames:
+        state = track_step(state, tuple(clusters), cfg.tracking, support=tuple(support))
+        out.append(state)
+    return out
+
+
+def test_support_region_continues_a_tentative_filter_through_a_dip(default_config: Config) -> None:
+    """Hysteresis (clustering.support_threshold): a small object's p(x) dipping under the
+    threshold for one frame leaves only a support region; the tentative filter takes it and is
+    confirmed on time instead of being removed by rule 3 and born again."""
+    cfg = default_config
+    frames = [([cluster(100, 100)], []), ([], [cluster(101, 100)]),
+              ([cluster(102, 100)], []), ([cluster(103, 100)], [])]
+    states = run_with_support(cfg, frames)
+    assert [t.uid for t in states[1].tracks] == [1] and states[1].tracks[0].misses == 0
+    assert [(t.uid, t.id) for t in states[3].tracks] == [(1, 1)]   # confirmed in its 4th frame
+    # the same sequence without the support region: removed in its second step, born again
+    plain = run_with_support(cfg, [(c, []) for c, _ in frames])
+    assert plain[1].tracks == ()
+    assert [(t.uid, t.id) for t in plain[3].tracks] == [(2, None)]
+
+
+def test_support_regions_never_start_or_keep_confirmed_filters(default_config: Config) -> None:
+    cfg = default_config   # max_missed = 3
+    # alone, support regions start nothing (rule 4 is for the clusters)
+    alone = run_with_support(cfg, [([], [cluster(100, 100)])] * 3)
+    assert all(s.tracks == () for s in alone)
+    # a confirmed filter does not use them: it misses, as without them
+    frames = [([cluster(100, 100)], [])] * 5 + [([], [cluster(100, 100)])] * 3
+    states = run_with_support(cfg, frames)
+    assert states[4].tracks[0].confirmed
+    assert [t.misses for t in states[5].tracks] == [1]
+    assert states[7].tracks == ()
+    # a support region outside the gate does not continue a tentative filter either
+    far = run_with_support(cfg, [([cluster(100, 100)], []), ([], [cluster(200, 100)])])
+    assert far[1].tracks == ()

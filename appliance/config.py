@@ -193,7 +193,6 @@ class ClusteringConfig:
     dilation_px: int = _p(0, 255)
     min_correspondences: int = _p(1, 100000)
     member_weight: float = _p(0.0, 1.0)
-    support_threshold: float = _p(0.0, 1.0)
 
 
 @dataclass(frozen=True)
@@ -482,13 +481,6 @@ def _check_cross(cfg: Config, origin: dict[str, dict[str, str]]) -> None:
             src("refinement", "min_correspondences"),
             "refinement.min_correspondences",
             "must be at least refinement.msac_sample_size",
-        )
-    if cfg.clustering.support_threshold >= cfg.clustering.threshold:
-        raise ConfigError(
-            src("clustering", "support_threshold"),
-            "clustering.support_threshold",
-            f"{cfg.clustering.support_threshold} must be below clustering.threshold "
-            f"({cfg.clustering.threshold}); 0 = off",
         )
     if cfg.hmi_can.warning_id == cfg.hmi_can.status_id:
         raise ConfigError(

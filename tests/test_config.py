@@ -66,7 +66,6 @@ def test_relative_dbc_resolves_against_the_user_file(tmp_path: Path) -> None:
         ('[vehicle_can]\ndbc = "nope.dbc"\n', "vehicle_can.dbc", "file not found"),
         ("[warning]\nttc_warning_s = 4.0\n", "warning.ttc_warning_s", "must not exceed"),
         ("[probability_map]\ngauss_window_px = 30\n", "probability_map.gauss_window_px", "odd"),
-        ("[clustering]\nsupport_threshold = 0.3\n", "clustering.support_threshold", "must be below"),
         ('[camera]\ndistortion = [0.1, "x"]\n', "camera.distortion", "list of numbers"),
         ("[detection\n", "", "invalid TOML"),
     ],

@@ -138,25 +138,3 @@ def test_clusters_boxes_counts_and_eq20_from_the_map(default_config: Config) -> 
 def test_no_clusters_on_an_empty_map(default_config: Config) -> None:
     p = ProbabilityMap(np.zeros((120, 160), dtype=np.float32), 4)
     assert find_clusters(p.p, 4, particles([], []), default_config.clustering, (640, 480)) == ()
-
-
-def test_support_regions_are_the_ones_below_the_threshold(default_config: Config) -> None:
-    """clustering.support_threshold: regions whose p(x) lies between it and the threshold,
-    never a part of a region that reaches the threshold."""
-    from appliance.decision.clustering import support_clusters
-    cfg = default_config.with_overrides({"clustering": {"support_threshold": 0.2}})
-    p = np.zeros(map_shape(CAM, 4), dtype=np.float32)
-    p[50:60, 100:110] = 0.5            # a cluster (u 400..440, v 200..240)
-    p[50:60, 111:113] = 0.25           # its weak fringe, joined to it by the dilation
-    p[20:26, 20:24] = 0.25             # a weak region of its own (u 80..96, v 80..104)
-    ps = particles([(410, 210), (420, 220), (430, 230), (446, 220), (447, 225), (448, 230),
-                    (84, 84), (88, 90), (92, 100)], [0.6] * 9)
-    strong = find_clusters(p, 4, ps, cfg.clustering, (640, 480))
-    weak = support_clusters(p, 4, ps, cfg.clustering, (640, 480))
-    assert len(strong) == 1 and strong[0].bbox[0] >= 400
-    assert len(weak) == 1
-    assert weak[0].n == 3 and weak[0].bbox == (84.0, 84.0, 93.0, 101.0)
-    assert weak[0].mean_probability == pytest.approx(0.25)
-    # off (0): none
-    off = default_config.with_overrides({"clustering": {"support_threshold": 0.0}})
-    assert support_clusters(p, 4, ps, off.clustering, (640, 480)) == ()

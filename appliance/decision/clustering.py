@@ -123,19 +123,16 @@ def shrink(box: Box, halo_px: float, min_size: float = 2.0) -> Box:
 
 
 def find_clusters(prob: NDArray[np.float32], scale: int, particles: ParticleSet,
-                  cfg: ClusteringConfig, image_size: tuple[int, int], halo_px: float = 0.0,
-                  *, threshold: float | None = None, peak_below: float | None = None
+                  cfg: ClusteringConfig, image_size: tuple[int, int], halo_px: float = 0.0
                   ) -> tuple[Cluster, ...]:
     """Regions of ``prob`` (map at 1/``scale``) above ``cfg.threshold``, as clusters.
 
     image_size: (width, height) px, to clip boxes. halo_px: the particle box is
     shrunk by this on each side (see :func:`shrink`). Ordered by region label
-    (top-to-bottom, left-to-right scan), deterministic. ``threshold`` replaces
-    ``cfg.threshold``; with ``peak_below`` only regions whose highest p(x) stays
-    below it are kept (:func:`support_clusters`).
+    (top-to-bottom, left-to-right scan), deterministic.
     """
     width, height = image_size
-    binary = (prob >= (cfg.threshold if threshold is None else threshold)).astype(np.uint8)
+    binary = (prob >= cfg.threshold).astype(np.uint8)
     if not np.any(binary):
         return ()
     r = int(round(cfg.dilation_px / scale))
@@ -166,8 +163,6 @@ def find_clusters(prob: NDArray[np.float32], scale: int, particles: ParticleSet,
         n = int(np.count_nonzero(members))
         if n < cfg.min_correspondences:
             continue
-        if peak_below is not None and float(prob[labels == lab].max()) >= peak_below:
-            continue
         x0, y0, w, h = (int(v) for v in stats[lab, :4])
         region = (float(x0 * scale), float(y0 * scale),
                   float(min((x0 + w) * scale, width)), float(min((y0 + h) * scale, height)))
@@ -193,20 +188,3 @@ def find_clusters(prob: NDArray[np.float32], scale: int, particles: ParticleSet,
             positions=mpos, flows=mflow, s=ms, weights=mw,
         ))
     return tuple(clusters)
-
-
-def support_clusters(prob: NDArray[np.float32], scale: int, particles: ParticleSet,
-                     cfg: ClusteringConfig, image_size: tuple[int, int], halo_px: float = 0.0
-                     ) -> tuple[Cluster, ...]:
-    """Regions between ``cfg.support_threshold`` and ``cfg.threshold``: hysteresis.
-
-    The regions of ``prob >= support_threshold`` (dilated and labelled as
-    :func:`find_clusters` does) none of whose pixels reaches ``threshold``, i.e.
-    those that are not (part of) a cluster of this frame. The tracker lets them
-    continue a tentative filter, never start one. Off (empty) when
-    ``support_threshold`` is 0.
-    """
-    if cfg.support_threshold <= 0.0:
-        return ()
-    return find_clusters(prob, scale, particles, cfg, image_size, halo_px,
-                         threshold=cfg.support_threshold, peak_below=cfg.threshold)

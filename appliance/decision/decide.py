@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from appliance.config import Config
-from appliance.decision.clustering import Cluster, find_clusters, support_clusters
+from appliance.decision.clustering import Cluster, find_clusters
 from appliance.decision.crossing_velocity import (
     odometry_step,
     to_odometry,
@@ -505,9 +505,7 @@ def decide(state: DecisionState, frame_index: int, t: float, particles: Particle
     prob = spatio_temporal_filter(state.prob, particles, ego.rotation, camera, cfg.probability_map)
     clusters = find_clusters(prob, cfg.probability_map.scale, particles, cfg.clustering,
                              (camera.width, camera.height), halo_px=0.5 * cfg.flow.window_px)
-    support = support_clusters(prob, cfg.probability_map.scale, particles, cfg.clustering,
-                               (camera.width, camera.height), halo_px=0.5 * cfg.flow.window_px)
-    tracker = track_step(state.tracker, clusters, cfg.tracking, model, support)
+    tracker = track_step(state.tracker, clusters, cfg.tracking, model)
 
     lost = coast_lost(state.tracker, state.cues, state.lost, tracker, t, dt, sensors, cfg)
     cues: dict[int, TrackCues] = {}

@@ -186,45 +186,24 @@ def gather_fragments(clusters: tuple[Cluster, ...], tracks: list[ImageTrack]
     return tuple(merged) + tuple(c for j, c in enumerate(clusters) if not taken[j])
 
 
-def _closest_in_gate(t: ImageTrack, centers: FloatArray, cfg: TrackingConfig) -> int | None:
-    """Index of the region closest to the filter's predicted position, if within the gate."""
-    if not len(centers):
-        return None
-    d = np.hypot(centers[:, 0] - t.x[0, 0], centers[:, 1] - t.x[1, 0])
-    j = int(np.argmin(d))
-    return j if d[j] < cfg.gate_px or d[j] < cfg.gate_sigmas * t.position_std else None
-
-
 def track_step(state: TrackerState, clusters: tuple[Cluster, ...], cfg: TrackingConfig,
-               model: ImageModel | None = None, support: tuple[Cluster, ...] = ()
-               ) -> TrackerState:
-    """One cycle of the five rules; returns the new list (oldest first).
-
-    support: regions below the clustering threshold but above its hysteresis level
-    (``clustering.support_threshold``, :func:`~appliance.decision.clustering.support_clusters`).
-    In rule 2 a tentative filter that finds no region in its gate takes the closest of
-    these instead, so a small object whose p(x) dips under the threshold for a frame is
-    not removed by rule 3; they never start a filter (rule 4) and confirmed filters do
-    not use them.
-    """
+               model: ImageModel | None = None) -> TrackerState:
+    """One cycle of the five rules; returns the new list (oldest first)."""
     model = model or ImageModel.from_config(cfg)
     # rule 1: predict every filter
     tracks = [_predict(t, model) for t in state.tracks]
     clusters = gather_fragments(clusters, tracks)
     centers = np.array([c.center for c in clusters]).reshape(-1, 2)
-    support_centers = np.array([c.center for c in support]).reshape(-1, 2)
     assigned = np.zeros(len(clusters), dtype=bool)
     # rule 2: closest region within the gate updates the filter
     for i, t in enumerate(tracks):
-        j = _closest_in_gate(t, centers, cfg)
-        if j is not None:
-            tracks[i] = _update(t, clusters[j], model, cfg.box_size_alpha)
-            assigned[j] = True
-            continue
-        k = _closest_in_gate(t, support_centers, cfg) if t.id is None else None
-        if k is not None:
-            tracks[i] = _update(t, support[k], model, cfg.box_size_alpha)
-            continue
+        if len(clusters):
+            d = np.hypot(centers[:, 0] - t.x[0, 0], centers[:, 1] - t.x[1, 0])
+            j = int(np.argmin(d))
+            if d[j] < cfg.gate_px or d[j] < cfg.gate_sigmas * t.position_std:
+                tracks[i] = _update(t, clusters[j], model, cfg.box_size_alpha)
+                assigned[j] = True
+                continue
         tracks[i] = replace(t, misses=t.misses + 1)
     # rule 3: tentative filters must be updated in each of their first steps;
     # every filter dies after max_missed steps without an update

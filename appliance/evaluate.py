@@ -66,6 +66,7 @@ TABLE_COLUMNS = (
     ("level1_per_min", "L1/min", ".2f"),
     ("ttc_rel_error_median", "TTCerr", ".0%"),
     ("distance_rel_error_median", "distErr", ".0%"),
+    ("ghost_tracks", "ghosts", ""),
     ("pass", "targets", ""),
 )
 

@@ -11,6 +11,8 @@ table with the issue's targets:
   over the ground (> 0.3 m/s, ``appliance.evaluation.metrics``);
 * median relative TTC error <= 20 % and distance error <= 15 % in the last 3 s.
 
+It also counts ghost tracks (confirmed tracks never on a mover, no target) per minute.
+
 Options: ``--seeds N``, ``--scenarios a,b``, ``--keep DIR`` (keep recordings and
 runs, with ``timeline.png``; recordings already in DIR are replayed again, not
 simulated again), ``--jobs N`` (parallel scenario runs; the machine
@@ -82,7 +84,7 @@ def aggregate(results: list[dict[str, Any]]) -> list[dict[str, str]]:
         if not rs:
             rows.append({"scenario": name, "seeds": f"0/{len(errors)}", "coll": "-",
                          "lead min/med": "-", "falseL2": "-", "L1/min max": "-",
-                         "detect max": "-", "TTCerr": "-", "distErr": "-",
+                         "detect max": "-", "TTCerr": "-", "distErr": "-", "ghosts/min": "-",
                          "targets": "ERROR " + errors[0]["error"]})
             continue
         coll = rs[0]["collision"]
@@ -112,6 +114,8 @@ def aggregate(results: list[dict[str, Any]]) -> list[dict[str, str]]:
             "detect max": "-" if not delays else ("MISS" if None in delays else str(max(delays))),
             "TTCerr": f(_med(ttc), ".0%"),
             "distErr": f(_med(dist), ".0%"),
+            "ghosts/min": f(sum(r.get("ghost_tracks", 0) for r in rs)
+                            / max(sum(r["duration_s"] for r in rs) / 60.0, 1e-9), ".1f"),
             "targets": "ok" if not failed and not errors else
             "FAIL " + ",".join(failed + (["errors"] if errors else [])),
         })
@@ -182,6 +186,12 @@ def main(argv: list[str]) -> int:
     movers = [o for r in ok for o in r["objects"]]
     print(f"movers confirmed within 10 frames of being >= 15 px tall, visible and moving: "
           f"{len(timely)}/{len(movers)}")
+    run_min = sum(r["duration_s"] for r in ok) / 60.0
+    if run_min > 0:
+        ghosts = sum(r.get("ghost_tracks", 0) for r in ok)
+        print(f"ghost tracks (confirmed, never on a mover): {ghosts} in {run_min:.1f} min "
+              f"({ghosts / run_min:.2f}/min), "
+              f"{sum(r.get('ghost_track_frames', 0) for r in ok)} track-frames")
     meeting = sum(1 for r in ok if not any(v is False for v in r["targets"].values()))
     print(f"runs meeting every target: {meeting}/{len(results)}")
     return 0 if all(a["targets"] == "ok" for a in agg) else 1

@@ -118,6 +118,9 @@ def test_collision_run_lead_time_false_warnings_and_errors(tmp_path: Path,
     assert r["targets"]["ttc_error"] is True and r["targets"]["detection"] is True
     saved = json.loads((run / "evaluation.json").read_text())
     assert saved["lead_time_s"] == r["lead_time_s"]
+    # track 9 is on the static scene for 4 frames: one ghost; track 5 is on the mover
+    assert (r["ghost_tracks"], r["ghost_track_frames"]) == (1, 4)
+    assert r["ghost_tracks_per_min"] == pytest.approx(60.0 / r["duration_s"], abs=1e-2)
     png = (run / "timeline.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
 
@@ -364,3 +367,21 @@ def test_the_truth_course_of_a_braking_car_stops_it(default_config: Config) -> N
     oid, meets, closest = truth_course([lead], 9, ego, times, default_config.mount, 0.3, 3.0)
     assert oid == 1 and closest == 0.0
     assert meets == pytest.approx(1.75, abs=0.06)
+
+
+def test_a_narrow_track_on_a_mover_is_no_ghost(tmp_path: Path, default_config: Config) -> None:
+    """Ghost tracks are confirmed tracks never on a mover. A far pedestrian's track box can be
+    2 px wide inside the pedestrian's (IoU far below 0.3, no match): its centre is inside the
+    mover's box, so it is on the mover, not a ghost. A track beside the mover is one."""
+    rec = write_recording(tmp_path / "rec", default_config)
+    tracks: list[dict[str, object]] = []
+    for f in range(20, 26):
+        u0, v0, u1, v1 = mover_box(f)
+        cu = 0.5 * (u0 + u1)
+        tracks.append({"frame": f, "id": 3, "bbox": [cu - 1, v0 + 2, cu + 1, v1 - 2],
+                       "probability": 0.5, "flow": [0.0, 0.0], "ttc_s": None, "distance_m": None})
+        tracks.append({"frame": f, "id": 4, "bbox": [u1 + 20, v0, u1 + 40, v1],
+                       "probability": 0.5, "flow": [0.0, 0.0], "ttc_s": None, "distance_m": None})
+    r = evaluate_run(rec, write_run(tmp_path / "run", tracks, []))
+    assert r["objects"][0]["first_detection_frame"] is None     # no IoU match at all
+    assert (r["ghost_tracks"], r["ghost_track_frames"]) == (1, 6)

@@ -34,6 +34,12 @@ Definitions (where the issue is silent, what a validation engineer expects):
   holds at least 80 % of the warning's box while the mover is at least half visible
   (a close pedestrian warned on its legs' box: IoU 0.17, but not a static object).
 * **Level-1 per minute:** onsets from level 0 to level >= 1 per minute of recording.
+* **Ghost tracks:** confirmed tracks never on a mover in any frame of their life (a track is on
+  a mover in a frame when their boxes match, when the track box's centre lies inside the
+  mover's box, or when the mover's box holds at least 80 % of the track's): tracks on static
+  scenery or on nothing. Reported as a count, their frames and a rate per minute of recording;
+  no target counts them (the false-warning targets do), but a change that makes more of them
+  makes more chances of a false warning.
 * **Truth course of a level-1 onset:** what the truth says of the caution when it was
   raised: every mover's course continued at its truth velocity over the ground (the ego
   vehicle on its truth arc; a mover's speed keeps changing as it did over the last 6
@@ -244,6 +250,7 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
             if best is not None:
                 match[o.id][int(f)] = best
                 votes[best.id][o.id] += 1
+    ghosts, ghost_frames = ghost_tracks(tracks, by_frame, movers, width, height)
     owner: dict[int, int] = {}
     for tid, c in votes.items():
         oid, n = c.most_common(1)[0]
@@ -348,6 +355,9 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
         "level1_per_min": round(len(l1_onsets) / minutes, 3) if minutes > 0 else None,
         "level1_on_truth_course": sum(1 for c in courses if c["truth_meets_s"] is not None),
         "level1_courses": courses,
+        "ghost_tracks": ghosts,
+        "ghost_track_frames": ghost_frames,
+        "ghost_tracks_per_min": round(ghosts / minutes, 3) if minutes > 0 else None,
         "worst_detection_delay_frames": worst_delay,
         "ttc_rel_error_median": ttc_err,
         "ttc_coverage": ttc_cov,
@@ -356,6 +366,25 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
     }
     result["targets"] = check_targets(result)
     return result
+
+
+def ghost_tracks(tracks: list[TrackRow], by_frame: dict[int, list[TrackRow]],
+                 movers: list[TruthObject], width: int, height: int) -> tuple[int, int]:
+    """(count, frames) of the confirmed tracks never on a mover (module docstring)."""
+    on_mover: set[int] = set()
+    for o in movers:
+        for i, f in enumerate(o.frames):
+            box = clip_box(o.bbox[i], width, height)
+            for tr in by_frame.get(int(f), []):
+                if tr.id in on_mover:
+                    continue
+                cu, cv = 0.5 * (tr.bbox[0] + tr.bbox[2]), 0.5 * (tr.bbox[1] + tr.bbox[3])
+                if (iou(tr.bbox, box) >= IOU_MATCH or inside_share(tr.bbox, box) >= INSIDE_SHARE
+                        or (box[0] <= cu <= box[2] and box[1] <= cv <= box[3])):
+                    on_mover.add(tr.id)
+    frames = Counter(tr.id for tr in tracks)
+    ghosts = [tid for tid in frames if tid not in on_mover]
+    return len(ghosts), sum(frames[tid] for tid in ghosts)
 
 
 def check_targets(r: dict[str, Any]) -> dict[str, bool | None]:

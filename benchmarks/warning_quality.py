@@ -114,7 +114,7 @@ def aggregate(results: list[dict[str, Any]]) -> list[dict[str, str]]:
             "detect max": "-" if not delays else ("MISS" if None in delays else str(max(delays))),
             "TTCerr": f(_med(ttc), ".0%"),
             "distErr": f(_med(dist), ".0%"),
-            "ghosts/min": f(sum(r.get("ghost_tracks", 0) for r in rs)
+            "ghosts/min": f(sum(r["ghost_tracks"] for r in rs)
                             / max(sum(r["duration_s"] for r in rs) / 60.0, 1e-9), ".1f"),
             "targets": "ok" if not failed and not errors else
             "FAIL " + ",".join(failed + (["errors"] if errors else [])),
@@ -188,10 +188,10 @@ def main(argv: list[str]) -> int:
           f"{len(timely)}/{len(movers)}")
     run_min = sum(r["duration_s"] for r in ok) / 60.0
     if run_min > 0:
-        ghosts = sum(r.get("ghost_tracks", 0) for r in ok)
+        ghosts = sum(r["ghost_tracks"] for r in ok)
         print(f"ghost tracks (confirmed, never on a mover): {ghosts} in {run_min:.1f} min "
               f"({ghosts / run_min:.2f}/min), "
-              f"{sum(r.get('ghost_track_frames', 0) for r in ok)} track-frames")
+              f"{sum(r['ghost_track_frames'] for r in ok)} track-frames")
     meeting = sum(1 for r in ok if not any(v is False for v in r["targets"].values()))
     print(f"runs meeting every target: {meeting}/{len(results)}")
     return 0 if all(a["targets"] == "ok" for a in agg) else 1

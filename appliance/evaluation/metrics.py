@@ -236,9 +236,11 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
     movers = [o for o in truth.objects if o.moving]
     ego = ego_motion(truth.objects)
 
-    # per frame, the best-matching track of every mover; attribution of track ids
+    # per frame, the best-matching track of every mover; attribution of track ids; the
+    # tracks that were ever on a mover (the others are ghosts)
     match: dict[int, dict[int, TrackRow]] = {o.id: {} for o in movers}
     votes: dict[int, Counter[int]] = defaultdict(Counter)
+    on_mover: set[int] = set()
     for o in movers:
         for i, f in enumerate(o.frames):
             box = clip_box(o.bbox[i], width, height)
@@ -247,10 +249,14 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
                 v = iou(tr.bbox, box)
                 if v >= best_iou:
                     best, best_iou = tr, v
+                if v >= IOU_MATCH or _on_part_of(tr.bbox, box):
+                    on_mover.add(tr.id)
             if best is not None:
                 match[o.id][int(f)] = best
                 votes[best.id][o.id] += 1
-    ghosts, ghost_frames = ghost_tracks(tracks, by_frame, movers, width, height)
+    track_frames = Counter(tr.id for tr in tracks)
+    ghosts = [tid for tid in track_frames if tid not in on_mover]
+    ghost_frames = sum(track_frames[tid] for tid in ghosts)
     owner: dict[int, int] = {}
     for tid, c in votes.items():
         oid, n = c.most_common(1)[0]
@@ -355,9 +361,9 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
         "level1_per_min": round(len(l1_onsets) / minutes, 3) if minutes > 0 else None,
         "level1_on_truth_course": sum(1 for c in courses if c["truth_meets_s"] is not None),
         "level1_courses": courses,
-        "ghost_tracks": ghosts,
+        "ghost_tracks": len(ghosts),
         "ghost_track_frames": ghost_frames,
-        "ghost_tracks_per_min": round(ghosts / minutes, 3) if minutes > 0 else None,
+        "ghost_tracks_per_min": round(len(ghosts) / minutes, 3) if minutes > 0 else None,
         "worst_detection_delay_frames": worst_delay,
         "ttc_rel_error_median": ttc_err,
         "ttc_coverage": ttc_cov,
@@ -368,23 +374,12 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
     return result
 
 
-def ghost_tracks(tracks: list[TrackRow], by_frame: dict[int, list[TrackRow]],
-                 movers: list[TruthObject], width: int, height: int) -> tuple[int, int]:
-    """(count, frames) of the confirmed tracks never on a mover (module docstring)."""
-    on_mover: set[int] = set()
-    for o in movers:
-        for i, f in enumerate(o.frames):
-            box = clip_box(o.bbox[i], width, height)
-            for tr in by_frame.get(int(f), []):
-                if tr.id in on_mover:
-                    continue
-                cu, cv = 0.5 * (tr.bbox[0] + tr.bbox[2]), 0.5 * (tr.bbox[1] + tr.bbox[3])
-                if (iou(tr.bbox, box) >= IOU_MATCH or inside_share(tr.bbox, box) >= INSIDE_SHARE
-                        or (box[0] <= cu <= box[2] and box[1] <= cv <= box[3])):
-                    on_mover.add(tr.id)
-    frames = Counter(tr.id for tr in tracks)
-    ghosts = [tid for tid in frames if tid not in on_mover]
-    return len(ghosts), sum(frames[tid] for tid in ghosts)
+def _on_part_of(track: Box, mover: NDArray[np.float64]) -> bool:
+    """A track box on part of a mover's box without matching it (ghost tracks, module
+    docstring): its centre inside, or at least ``INSIDE_SHARE`` of it inside."""
+    cu, cv = 0.5 * (track[0] + track[2]), 0.5 * (track[1] + track[3])
+    return (bool(mover[0] <= cu <= mover[2] and mover[1] <= cv <= mover[3])
+            or inside_share(track, mover) >= INSIDE_SHARE)
 
 
 def check_targets(r: dict[str, Any]) -> dict[str, bool | None]:

@@ -13,13 +13,11 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-import numpy as np
-
 from appliance.config import Config
 from appliance.decision.decide import DecisionOutput, DecisionState, decide, init_decision_state
 from appliance.messages import Frame, ProbabilityMap, SensorSample, StepOutput
 from appliance.vision.geometry import PinholeCamera
-from appliance.vision.perception import VisionState, init_vision_state, perceive
+from appliance.vision.perception import VisionState, check_frame, init_vision_state, perceive
 
 STAGES = ("vision", "decision", "total")
 
@@ -43,18 +41,6 @@ def init_state(cfg: Config, camera: PinholeCamera) -> PipelineState:
         decision=init_decision_state(cfg, camera),
         prob_map=None,
     )
-
-
-def check_frame(frame: Frame, camera: PinholeCamera) -> None:
-    """A frame of the wrong size or type is a configuration error, not something to guess around."""
-    img = frame.image
-    if img.ndim != 2 or img.dtype != np.uint8:
-        raise ValueError(f"frame {frame.index}: expected 8-bit gray, got {img.dtype} {img.shape}")
-    if img.shape != (camera.height, camera.width):
-        raise ValueError(
-            f"frame {frame.index} is {img.shape[1]}x{img.shape[0]}, "
-            f"the camera is configured for {camera.width}x{camera.height}"
-        )
 
 
 def step(

@@ -7,7 +7,7 @@ machine load; p(x) is fed back through the spatio-temporal filter for each, as i
 pipeline. Prints the median ms per frame of each and the ratio B / A. Without any change it
 is an A/A run: the ratio then shows the noise floor of the comparison.
 
-Example: the foot points' cost, ``--set=detection.foot_probability=0``.
+Example: the cost of 300 particles instead of 500, ``--set=detection.particles=300``.
 Options: ``--recordings=DIR``, ``--scenarios=a,b`` (default: four scenarios of the vision
 benchmark's cache, simulated when missing), ``--frames=N`` (per recording, default 150),
 ``--duration=S``, ``--seed=N``.

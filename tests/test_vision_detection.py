@@ -28,7 +28,6 @@ from appliance.vision.likelihood import (
     combine,
     direction_cue,
     foot_points,
-    horizon_row,
     magnitude_cue,
     motion_cues,
     road_depth,
@@ -81,10 +80,11 @@ def test_road_depth_and_horizon_of_a_level_camera() -> None:
     Z = road_depth(ROAD, K, uv)
     np.testing.assert_allclose(Z[:2], [HEIGHT * 10.0, HEIGHT * 20.0])
     assert np.isnan(Z[2])                       # above the horizon: no road
-    assert horizon_row(ROAD, K) == pytest.approx(239.5)
     pitched = RoadPlane(normal=g.rot_x(-0.05).T @ np.array([0.0, -1.0, 0.0]), height_m=HEIGHT)
     # a camera pitched down (rotation about x by -0.05) sees the horizon higher
-    assert horizon_row(pitched, K) == pytest.approx(239.5 - 700.0 * math.tan(0.05), abs=1e-6)
+    v_h = 239.5 - 700.0 * math.tan(0.05)
+    Z = road_depth(pitched, K, np.array([[319.5, v_h + 1.0], [319.5, v_h - 1.0]]))
+    assert Z[0] > 500.0 and np.isnan(Z[1])
 
 
 def road_correspondence(uv_cur: np.ndarray, step_m: float) -> np.ndarray:

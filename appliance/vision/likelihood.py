@@ -109,18 +109,6 @@ def road_depth(road: RoadPlane, K: FloatArray, uv: NDArray[np.floating]) -> Floa
         return np.where(drop < -MIN_RAY_DROP, -road.height_m / drop, np.nan)
 
 
-def horizon_row(road: RoadPlane, K: FloatArray) -> float | None:
-    """Row (ideal px) where the road's vanishing line crosses the principal column, or None.
-
-    The vanishing line is ``K^-T n``; at ``u = c_x`` it gives ``v = c_y - f_y n_z / n_y``.
-    None when the line is (nearly) vertical in the image.
-    """
-    n = road.normal
-    if abs(n[1]) < 1e-6:
-        return None
-    return float(K[1, 2] - K[1, 1] * n[2] / n[1])
-
-
 def _angular_error(sigma: float | FloatArray, d: FloatArray) -> FloatArray:
     """``arcsin(sigma / d)`` of eq. 5, continued as ``(pi/2) sigma / d`` beyond sigma = d (rad)."""
     with np.errstate(divide="ignore"):

@@ -3,7 +3,7 @@
 OpenCV's Python binding cannot take a prebuilt pyramid (``calcOpticalFlowPyrLK``
 rejects the list ``buildOpticalFlowPyramid`` returns), so each frame's pyramid is
 built once by tracking the particle pool and the static pool in *one* forward
-call; the backward check of the points that need it is one more call.
+call; the backward check is one more call.
 """
 
 from __future__ import annotations

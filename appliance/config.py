@@ -119,63 +119,33 @@ class PtuConfig:
 class FlowConfig:
     pyramid_levels: int = _p(0, 6)
     window_px: int = _p(3, 63)
-    max_iterations: int = _p(1, 200)
-    epsilon: float = _p(0.0, lo_open=True)
     fb_threshold_px: float = _p(0.0, lo_open=True)
-    fb_check_particles: bool = _p()
-    min_eigenvalue: float = _p(0.0)
-    rotation_guess: bool = _p()
 
 
 @dataclass(frozen=True)
 class DetectionConfig:
     particles: int = _p(1, 100000)
     importance_fraction: float = _p(0.0, 1.0)
-    importance: str = _p(choices=("uniform", "road"))
     diffusion_px: float = _p(0.0, 100.0)
     sigma_e_px: float = _p(0.0, lo_open=True)
     sigma_p_px: float = _p(0.0, lo_open=True)
     likelihood: str = _p(choices=("direction", "magnitude", "combined"))
     magnitude_sigma: float = _p(0.0, lo_open=True)
-    min_flow_px: float = _p(0.0)
-    epipole_radius_px: float = _p(0.0)
+    max_flow_px: float = _p(0.0, lo_open=True)
     standstill_speed_m_s: float = _p(0.0)
     standstill_residual_px: float = _p(0.0, lo_open=True)
-    weight_floor: float = _p(0.0, 1.0)
-    max_flow_px: float = _p(0.0, lo_open=True)
-    lk_noise_gain: float = _p(0.0, 1000.0)
-    baseline_frames: int = _p(1, 30)
-    span_frames: int = _p(1, 30)
-    image_noise_gray: float = _p(0.0, 255.0)
-    fb_noise_gain: float = _p(0.0, 1000.0)
-    foot_probability: float = _p(0.0, 1.0)
-    foot_gap_px: float = _p(0.0, 480.0)
-    foot_max_height_m: float = _p(0.5, 5.0)
-    birth_fraction: float = _p(0.0, 1.0)
-    birth_likelihood: float = _p(0.0, 1.0)
-    birth_spread_px: float = _p(0.0, 100.0)
-    isolation_spacing_px: float = _p(0.0, 100.0)
-    isolation_min_valid: int = _p(1, 4)
-    stability_offset_px: float = _p(0.0, 100.0)
-    stability_gain: float = _p(0.0, 100.0)
-    stability_floor_px: float = _p(0.0, 100.0)
 
 
 @dataclass(frozen=True)
 class RefinementConfig:
     static_points: int = _p(5, 100000)
-    min_correspondences: int = _p(5, 100000)
     sigma_epipole_rad: float = _p(0.0, lo_open=True)
     sigma_rot_x_rad: float = _p(0.0, lo_open=True)
     sigma_rot_y_rad: float = _p(0.0, lo_open=True)
     sigma_rot_z_rad: float = _p(0.0, lo_open=True)
-    wide_prior_factor: float = _p(1.0)
     sigma_l_px: float = _p(0.0, lo_open=True)
     msac_threshold_px: float = _p(0.0, lo_open=True)
     msac_hypotheses: int = _p(1, 10000)
-    msac_sample_size: int = _p(3, 100)
-    lm_iterations: int = _p(1, 1000)
-    msac_lm_iterations: int = _p(1, 1000)
 
 
 @dataclass(frozen=True)
@@ -483,12 +453,6 @@ def _check_cross(cfg: Config, origin: dict[str, str]) -> None:
             src("probability_map", "gauss_window_px"),
             "probability_map.gauss_window_px",
             f"{cfg.probability_map.gauss_window_px} must be odd",
-        )
-    if cfg.refinement.min_correspondences < cfg.refinement.msac_sample_size:
-        raise ConfigError(
-            src("refinement", "min_correspondences"),
-            "refinement.min_correspondences",
-            "must be at least refinement.msac_sample_size",
         )
     if cfg.hmi_can.warning_id == cfg.hmi_can.status_id:
         raise ConfigError(

@@ -33,7 +33,7 @@ from appliance.messages import (
     StepOutput,
 )
 from appliance.vision.geometry import PinholeCamera
-from appliance.vision.perception import VisionState, init_vision_state, perceive
+from appliance.vision.perception import VisionState, check_frame, init_vision_state, perceive
 from appliance.vision.probes import measure_points
 
 STAGES = ("vision", "decision", "total")
@@ -58,18 +58,6 @@ def init_state(cfg: Config, camera: PinholeCamera) -> PipelineState:
         decision=init_decision_state(cfg, camera),
         prob_map=None,
     )
-
-
-def check_frame(frame: Frame, camera: PinholeCamera) -> None:
-    """A frame of the wrong size or type is a configuration error, not something to guess around."""
-    img = frame.image
-    if img.ndim != 2 or img.dtype != np.uint8:
-        raise ValueError(f"frame {frame.index}: expected 8-bit gray, got {img.dtype} {img.shape}")
-    if img.shape != (camera.height, camera.width):
-        raise ValueError(
-            f"frame {frame.index} is {img.shape[1]}x{img.shape[0]}, "
-            f"the camera is configured for {camera.width}x{camera.height}"
-        )
 
 
 def decision_step(

@@ -61,6 +61,8 @@ from appliance.vision.geometry import (
 from appliance.vision.likelihood import CameraMotion, combine, motion_cues
 from appliance.vision.msac import truncated_loss, weighted_minimal_samples
 from appliance.vision.refinement import (
+    MIN_CORRESPONDENCES,
+    SAMPLE_SIZE,
     MapProblem,
     correspondence_errors,
     map_residuals,
@@ -221,7 +223,7 @@ def run(case: Case, mode: str, frames: int, seed: int, timing: bool) -> RunLog:
 def scipy_refine(problem: MapProblem, x_prev: np.ndarray, x_cur: np.ndarray, keep: np.ndarray,
                  cfg: Any, rng: np.random.Generator) -> np.ndarray:
     """The same preemptive MSAC with every MAP estimate by scipy's MINPACK LM, one problem per call."""
-    idx = weighted_minimal_samples(rng, keep, cfg.msac_hypotheses, cfg.msac_sample_size)
+    idx = weighted_minimal_samples(rng, keep, cfg.msac_hypotheses, SAMPLE_SIZE)
     hyps = [problem.theta_bar]
     for row in idx:
         res = map_residuals(problem, x_prev[row], x_cur[row])
@@ -243,7 +245,7 @@ def lm_comparison(args: list[tuple[Any, ...]], cfg: Config) -> tuple[float, floa
         translating = not prior.standstill
         sl = slice(0, 5) if translating else slice(2, 5)
         problem = MapProblem(prior.theta[sl], prior.sigma[sl], camera.K, cfg.refinement.sigma_l_px, translating)
-        if len(xp) < cfg.refinement.min_correspondences:
+        if len(xp) < MIN_CORRESPONDENCES:
             continue
         t0 = time.perf_counter()
         a = refine_motion(problem, xp, xc, keep, cfg.refinement, np.random.default_rng(1)).theta

@@ -1,11 +1,17 @@
-"""The vision benchmark's static false-evidence measure: how long, and where."""
+"""The vision benchmarks: the static false-evidence measure (how long, and where), and the
+A/B of two checkouts."""
 
 from __future__ import annotations
 
-import numpy as np
+from pathlib import Path
 
+import numpy as np
+from conftest import write_small_recording
+
+from appliance.config import Config
 from appliance.messages import ParticleSet
 from benchmarks.vision import RunLog, longest_false_run
+from benchmarks.vision_ab import against_checkout
 
 W, H = 640, 480
 
@@ -52,3 +58,15 @@ def test_a_static_scene_without_high_weights_has_no_run() -> None:
         log.particles.append(_frame([], rng))
         log.frames.append(k)
     assert longest_false_run(log, W, H).frames == 0
+
+
+def test_vision_ab_against_a_checkout_runs_both_sides_interleaved(tmp_path: Path,
+                                                                  default_config: Config) -> None:
+    """``vision_ab --against``: this checkout against itself (the A/A run) times every frame
+    with flow on both sides and finds their outputs identical frame by frame."""
+    rec = tmp_path / "rec"
+    write_small_recording(rec, default_config, n_frames=4)
+    ms, agree, total = against_checkout(Path(__file__).resolve().parent.parent, [rec], 4)
+    assert total == 4 and agree == 4
+    assert len(ms["A"]) == len(ms["B"]) == 3            # the first frame has no flow
+    assert all(t > 0.0 for t in ms["A"] + ms["B"])

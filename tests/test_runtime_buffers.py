@@ -6,12 +6,12 @@ import threading
 
 import pytest
 
-from appliance.runtime.ring_buffer import RingBuffer
 from appliance.runtime.sensor_sync import SensorSync, SignalHistory
+from drivers.handoff import Handoff
 
 
 def test_overwrite_oldest_counts_drops() -> None:
-    rb: RingBuffer[int] = RingBuffer(3)
+    rb: Handoff[int] = Handoff(3)
     for i in range(5):
         rb.put(i)
     assert rb.drain() == [2, 3, 4]
@@ -20,7 +20,7 @@ def test_overwrite_oldest_counts_drops() -> None:
 
 
 def test_take_newest_skips_and_counts_the_older_frames() -> None:
-    rb: RingBuffer[int] = RingBuffer(4)
+    rb: Handoff[int] = Handoff(4)
     for i in range(3):
         rb.put(i)
     assert rb.take_newest(timeout=0) == 2
@@ -29,7 +29,7 @@ def test_take_newest_skips_and_counts_the_older_frames() -> None:
 
 
 def test_consumer_wakes_when_a_producer_pushes() -> None:
-    rb: RingBuffer[str] = RingBuffer(2)
+    rb: Handoff[str] = Handoff(2)
     got: list[str | None] = []
     waiting = threading.Event()
 
@@ -46,7 +46,7 @@ def test_consumer_wakes_when_a_producer_pushes() -> None:
 
 
 def test_close_releases_a_waiting_consumer() -> None:
-    rb: RingBuffer[int] = RingBuffer(2)
+    rb: Handoff[int] = Handoff(2)
     result: list[int | None] = [0]
     th = threading.Thread(target=lambda: result.__setitem__(0, rb.take_newest(timeout=10.0)))
     th.start()
@@ -57,7 +57,7 @@ def test_close_releases_a_waiting_consumer() -> None:
 
 def test_capacity_must_be_positive() -> None:
     with pytest.raises(ValueError):
-        RingBuffer(0)
+        Handoff(0)
 
 
 def test_interpolation_hold_and_staleness() -> None:

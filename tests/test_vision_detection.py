@@ -12,22 +12,22 @@ from filterpy.monte_carlo import systematic_resample as filterpy_systematic
 from appliance.config import Config, DetectionConfig
 from appliance.vision import geometry as g
 from appliance.vision.detection import (
+    BIRTH_LIKELIHOOD,
     BIRTHS_PER_POINT,
+    WEIGHT_FLOOR,
     ImportanceDensity,
     birth_positions,
-    next_particles,
     resample_particles,
-    road_importance,
     systematic_resample,
 )
 from appliance.vision.likelihood import (
+    EPIPOLE_RADIUS_PX,
     CameraMotion,
     Cues,
     RoadPlane,
     combine,
     direction_cue,
     foot_points,
-    horizon_row,
     magnitude_cue,
     motion_cues,
     road_depth,
@@ -69,7 +69,7 @@ def test_direction_is_undefined_near_the_epipole_and_for_near_zero_flow(default_
     cfg = default_config.detection
     backwards = np.array([[-5.0, 0.0], [-0.05, 0.0], [0.0, 0.0], [-5.0, 0.0]])
     static_dir = np.tile([[1.0, 0.0]], (4, 1))
-    d_e = np.array([cfg.epipole_radius_px / 2, 200.0, 200.0, 200.0])
+    d_e = np.array([EPIPOLE_RADIUS_PX / 2, 200.0, 200.0, 200.0])
     p = direction_cue(backwards, static_dir, d_e, cfg)
     np.testing.assert_allclose(p[:3], 0.0)   # at the epipole, a 0.05 px flow, a zero flow
     assert p[3] > 0.9                        # the same backwards flow far from the epipole
@@ -80,10 +80,11 @@ def test_road_depth_and_horizon_of_a_level_camera() -> None:
     Z = road_depth(ROAD, K, uv)
     np.testing.assert_allclose(Z[:2], [HEIGHT * 10.0, HEIGHT * 20.0])
     assert np.isnan(Z[2])                       # above the horizon: no road
-    assert horizon_row(ROAD, K) == pytest.approx(239.5)
     pitched = RoadPlane(normal=g.rot_x(-0.05).T @ np.array([0.0, -1.0, 0.0]), height_m=HEIGHT)
     # a camera pitched down (rotation about x by -0.05) sees the horizon higher
-    assert horizon_row(pitched, K) == pytest.approx(239.5 - 700.0 * math.tan(0.05), abs=1e-6)
+    v_h = 239.5 - 700.0 * math.tan(0.05)
+    Z = road_depth(pitched, K, np.array([[319.5, v_h + 1.0], [319.5, v_h - 1.0]]))
+    assert Z[0] > 500.0 and np.isnan(Z[1])
 
 
 def road_correspondence(uv_cur: np.ndarray, step_m: float) -> np.ndarray:
@@ -193,26 +194,13 @@ def test_systematic_resample_matches_filterpy(monkeypatch: pytest.MonkeyPatch, o
     np.testing.assert_array_equal(systematic_resample(w, 40, offset), filterpy_systematic(w))
 
 
-def test_importance_correction_undoes_the_road_bias() -> None:
-    g_road = road_importance(640, 480, 240.0)
-    assert g_road.band_top is not None
-    rng = np.random.default_rng(0)
-    pos = g_road.sample(rng, 20000)
-    in_band = pos[:, 1] >= g_road.band_top
-    assert in_band.mean() > 0.8              # biased towards the road band
-    # E_g[u / g] = 1: the corrected samples represent the uniform prior (eq. 4)
-    assert g_road.correction(pos).mean() == pytest.approx(1.0, abs=0.02)
-    np.testing.assert_array_equal(ImportanceDensity(640, 480).correction(pos[:5]), 1.0)
-    assert road_importance(640, 480, None).band_top is None
-
-
 def test_with_no_valid_particle_all_come_from_g(default_config: Config) -> None:
     cfg = default_config.detection
     n = cfg.particles
     x = np.zeros((n, 2))
-    out, corr = next_particles(x, np.ones(n), np.zeros(n, bool), np.ones(n),
-                               ImportanceDensity(640, 480), cfg, np.random.default_rng(0))
-    assert out.shape == (n, 2) and np.all(corr == 1.0)
+    out = resample_particles(x, np.ones(n), np.zeros(n, bool), ImportanceDensity(640, 480), cfg,
+                             np.random.default_rng(0))
+    assert out.shape == (n, 2)
     assert out[:, 0].std() > 100.0           # spread over the image, not stuck at (0, 0)
 
 
@@ -251,24 +239,22 @@ def test_particles_concentrate_on_a_moving_blob_within_a_few_frames(
 ])
 def test_a_high_weight_floor_gathers_more_slowly(
         default_config: Config, mode: str, blob_flow: np.ndarray) -> None:
-    """``weight_floor`` 0.4 trades speed of gathering for fewer clumps on false evidence."""
-    fast = default_config.with_overrides({"detection": {"likelihood": mode}}).detection
-    slow = default_config.with_overrides({"detection": {"likelihood": mode, "weight_floor": 0.4}}).detection
+    """A weight floor of 0.4 trades speed of gathering for fewer clumps on false evidence."""
+    cfg = default_config.with_overrides({"detection": {"likelihood": mode}}).detection
     blob_share = (BLOB[2] - BLOB[0]) * (BLOB[3] - BLOB[1]) / (640 * 480)
-    assert run_blob_filter(slow, blob_flow, 5)[0] < 0.5 * run_blob_filter(fast, blob_flow, 5)[0]
-    final_share, shares = run_blob_filter(slow, blob_flow, 12)
+    assert run_blob_filter(cfg, blob_flow, 5, 0.4)[0] < 0.5 * run_blob_filter(cfg, blob_flow, 5)[0]
+    final_share, shares = run_blob_filter(cfg, blob_flow, 12, 0.4)
     assert final_share > 5.0 * blob_share, (mode, final_share)
     assert shares[-1] > 0.8
 
 
-def run_blob_filter(cfg: DetectionConfig, blob_flow: np.ndarray, frames: int
-                    ) -> tuple[float, list[float]]:
+def run_blob_filter(cfg: DetectionConfig, blob_flow: np.ndarray, frames: int,
+                    weight_floor: float = WEIGHT_FLOOR) -> tuple[float, list[float]]:
     """Particle filter on the synthetic flow field; share of particles on the blob at the end,
     and per frame the share of high-weight particles on the blob."""
     rng = np.random.default_rng(4)
     gd = ImportanceDensity(640, 480)
     particles = gd.sample(rng, cfg.particles)
-    correction = np.ones(cfg.particles)
     motion = forward_motion(0.4)
     shares: list[float] = []
     for _ in range(frames):
@@ -282,7 +268,7 @@ def run_blob_filter(cfg: DetectionConfig, blob_flow: np.ndarray, frames: int
         high = w > 0.5
         shares.append(float(in_blob(x_cur[high]).mean()) if high.any() else 0.0)
         valid = np.ones(len(x_cur), bool)
-        particles, correction = next_particles(x_cur, w, valid, correction, gd, cfg, rng)
+        particles = resample_particles(x_cur, w, valid, gd, cfg, rng, weight_floor=weight_floor)
     return float(in_blob(particles).mean()), shares
 
 
@@ -303,8 +289,8 @@ def test_particles_leaving_the_image_are_redrawn_not_piled_at_the_border(default
     cfg = default_config.with_overrides({"detection": {"importance_fraction": 0.0}}).detection
     n = cfg.particles
     x = np.tile([[639.0, 479.0]], (n, 1))                  # all in the corner, high weight
-    out, _ = next_particles(x, np.ones(n), np.ones(n, bool), np.ones(n), ImportanceDensity(640, 480),
-                            cfg, np.random.default_rng(0))
+    out = resample_particles(x, np.ones(n), np.ones(n, bool), ImportanceDensity(640, 480), cfg,
+                             np.random.default_rng(0))
     assert np.all((out >= 0.0) & (out <= [639.0, 479.0]))
     near_corner = np.hypot(out[:, 0] - 639.0, out[:, 1] - 479.0) < 10.0
     assert 0.1 < near_corner.mean() < 0.5                  # about the quarter that stayed inside
@@ -342,18 +328,19 @@ def test_flows_measured_along_an_edge_do_not_flag_motion(default_config: Config)
 
 def test_births_gather_next_to_static_correspondences_that_look_independent(
         default_config: Config) -> None:
-    """Static-pool corners with a high likelihood seed births (correction 1, no parent) next to
-    them, at most BIRTHS_PER_POINT each, in proportion to the likelihood; none seed without."""
+    """Static-pool corners with a high likelihood seed births next to them, at most
+    BIRTHS_PER_POINT each, in proportion to the likelihood; none seed without. Births take the
+    first importance slots."""
     cfg = default_config.detection
     rng = np.random.default_rng(3)
     corners = np.array([[100.0, 100.0], [400.0, 250.0], [600.0, 50.0]])
     lik = np.array([0.1, 0.9, 0.6])
-    b = birth_positions(corners, lik, 50, cfg.birth_likelihood, 3.0, 640, 480, rng)
+    b = birth_positions(corners, lik, 50, BIRTH_LIKELIHOOD, 3.0, 640, 480, rng)
     assert len(b) == 2 * BIRTHS_PER_POINT                       # two corners above 0.5
     near = np.linalg.norm(b[:, None, :] - corners[None, :, :], axis=2).argmin(axis=1)
     assert set(near.tolist()) <= {1, 2}
     assert np.all(np.linalg.norm(b - corners[near], axis=1) < 15.0)
-    assert len(birth_positions(corners, lik * 0.5, 50, cfg.birth_likelihood, 3.0, 640, 480, rng)) == 0
+    assert len(birth_positions(corners, lik * 0.5, 50, BIRTH_LIKELIHOOD, 3.0, 640, 480, rng)) == 0
     many = birth_positions(corners, lik, 4000, 0.5, 3.0, 640, 480, rng)  # cap lifted by n
     assert len(many) == 2 * BIRTHS_PER_POINT
     edge = birth_positions(np.array([[0.0, 479.0]]), np.ones(1), 4, 0.5, 30.0, 640, 480, rng)
@@ -361,28 +348,8 @@ def test_births_gather_next_to_static_correspondences_that_look_independent(
 
     n = cfg.particles
     x = rng.uniform([0, 0], [640, 480], (n, 2))
-    out, corr, parent, _ = resample_particles(x, np.full(n, 0.1), np.ones(n, bool), np.ones(n),
-                                              ImportanceDensity(640, 480), cfg, rng, b)
+    out = resample_particles(x, np.full(n, 0.1), np.ones(n, bool), ImportanceDensity(640, 480),
+                             cfg, rng, b)
     n_imp = round(cfg.importance_fraction * n)
     born = out[n - n_imp:n - n_imp + len(b)]
     np.testing.assert_array_equal(born, b)
-    assert np.all(parent[n - n_imp:] == -1) and np.all(corr[n - n_imp:n - n_imp + len(b)] == 1.0)
-
-
-def test_isolated_evidence_is_capped_at_its_neighbours_likelihood() -> None:
-    """A particle whose valid neighbours all look static is capped at their highest
-    likelihood; one neighbour that moves with it (an object larger than the spacing) or
-    too few valid neighbours leave it alone."""
-    from appliance.vision.boundary import isolated_likelihood, neighbour_points
-
-    lik = np.array([0.9, 0.9, 0.9, 0.9])
-    nb = np.array([[0.1, 0.2, 0.05, 0.3],     # all static: isolated, capped at 0.3
-                   [0.1, 0.2, 0.8, 0.3],      # one neighbour moves with it: an object
-                   [0.1, 0.2, 0.9, 0.3],      # that one invalid: isolated again
-                   [0.1, 0.9, 0.9, 0.9]])     # a single valid neighbour: no test
-    valid = np.array([[True] * 4, [True] * 4, [True, True, False, True],
-                      [True, False, False, False]])
-    out = isolated_likelihood(lik, nb, valid, 0.5, 2)
-    np.testing.assert_allclose(out, [0.3, 0.9, 0.3, 0.9])
-    pts = neighbour_points(np.array([[100.0, 50.0]]), 9.0)
-    np.testing.assert_allclose(pts[0], [[91, 50], [109, 50], [100, 41], [100, 59]])

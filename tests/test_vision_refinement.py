@@ -23,8 +23,13 @@ from appliance.vision.epipolar import (
 from appliance.vision.likelihood import derotate
 from appliance.vision.lm import batched_lm
 from appliance.vision.msac import truncated_loss, weighted_minimal_samples
-from appliance.vision.prior import prior_motion, vehicle_arc
-from appliance.vision.refinement import MapProblem, map_residuals, refine_motion
+from appliance.vision.prior import WIDE_PRIOR_FACTOR, prior_motion, vehicle_arc
+from appliance.vision.refinement import (
+    MIN_CORRESPONDENCES,
+    MapProblem,
+    map_residuals,
+    refine_motion,
+)
 
 CAM = g.PinholeCamera(640, 480, 700.0, 700.0, 319.5, 239.5)
 K = CAM.K
@@ -203,7 +208,7 @@ def test_standstill_refines_the_rotation_from_transfer_errors(default_config: Co
 
 
 def test_too_few_correspondences_keep_the_prior(default_config: Config) -> None:
-    x_prev, x_cur = correspondences(R_TRUE, T_TRUE, m=default_config.refinement.min_correspondences - 1)
+    x_prev, x_cur = correspondences(R_TRUE, T_TRUE, m=MIN_CORRESPONDENCES - 1)
     prior = truth_theta(R_TRUE, T_TRUE) + 0.01
     result = refine_motion(wide_problem(prior), x_prev, x_cur, np.ones(len(x_prev)),
                            default_config.refinement, np.random.default_rng(0))
@@ -273,6 +278,6 @@ def test_missing_or_nan_can_widens_the_prior_and_says_so(default_config: Config)
                        sample(0.1, speed=math.nan, yaw=math.nan), 0.3)
     for p in (stale, nan):
         assert p.wide and not p.metric and not p.standstill
-        np.testing.assert_allclose(p.sigma, ok.sigma * cfg.refinement.wide_prior_factor)
+        np.testing.assert_allclose(p.sigma, ok.sigma * WIDE_PRIOR_FACTOR)
         assert np.all(np.isfinite(p.theta)) and np.all(np.isfinite(p.R))
     np.testing.assert_allclose(nan.theta[:2], [0.0, 0.0], atol=1e-12)   # assumes straight ahead

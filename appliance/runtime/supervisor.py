@@ -29,11 +29,11 @@ from appliance.messages import Frame, StepOutput, WarningEvent
 from appliance.pipeline import PipelineState, camera_from_config, init_state, step
 from appliance.runtime.health import Faults, Health, HealthStatus
 from appliance.runtime.outputs import RunOutputs, timing_stats
-from appliance.runtime.ring_buffer import RingBuffer
 from appliance.runtime.sd_notify import SdNotifier
 from appliance.runtime.sensor_sync import SensorSync
 from appliance.runtime.wiring import hmi_status, hmi_warning
 from drivers.camera import CameraFrame, FrameSource
+from drivers.handoff import Handoff
 from drivers.hmi_can import HmiCanWriter
 from drivers.link import LinkState
 from drivers.ptu import PtuSample
@@ -104,10 +104,10 @@ class Supervisor:
         self.on_event = on_event or (lambda line: log.info("%s", line))
         self.recorder = recorder
         self.clock = clock
-        self.frame_ring: RingBuffer[CameraFrame] = RingBuffer(cfg.runtime.frame_buffer)
-        self.can_ring: RingBuffer[VehicleSignal] = RingBuffer(cfg.runtime.can_buffer)
-        self.ptu_ring: RingBuffer[PtuSample] = RingBuffer(cfg.runtime.ptu_buffer)
-        self._out_ring: RingBuffer[StepOutput | WarningEvent] = RingBuffer(4096)
+        self.frame_ring: Handoff[CameraFrame] = Handoff(cfg.runtime.frame_buffer)
+        self.can_ring: Handoff[VehicleSignal] = Handoff(cfg.runtime.can_buffer)
+        self.ptu_ring: Handoff[PtuSample] = Handoff(cfg.runtime.ptu_buffer)
+        self._out_ring: Handoff[StepOutput | WarningEvent] = Handoff(4096)
         self.health = Health()
         self.stats = RunStats()
         self.stop_event = threading.Event()

@@ -7,23 +7,20 @@ A particle is an image position where optical flow is measured. Per frame:
 2. *weigh*: the likelihood of independent motion at the measurement (``likelihood``);
 3. *resample*: ``(1 - importance_fraction) N`` particles by systematic resampling of
    the weights; ``importance_fraction N`` fresh particles from the importance
-   function g, whose weights at the next frame carry the correction of eq. 4.
+   function g.
 
-Eq. 4 as printed, ``w = p(y|theta) / g(theta)``, is a density ratio and only makes
-sense against the density the filter would otherwise sample from; we use the
-uniform density u over the image (the filter's "object appears anywhere" prior):
-``w = p(y|theta) u / g(theta)``. For ``importance = "uniform"`` the correction is 1;
-for ``"road"`` (g biased to the band around and below the horizon where road users
-appear) samples inside the band are weighted down and those outside up.
+g is uniform over the image: an object can appear anywhere. Eq. 4 as printed,
+``w = p(y|theta) / g(theta)``, is a density ratio against the density the filter would
+otherwise sample from, the same uniform "object appears anywhere" prior, so its
+correction ``u / g`` is 1 and an importance sample is weighed like any other particle.
 
-*Births* (beyond the paper, ``birth_fraction``): the static-scene pool of section 3
+*Births* (beyond the paper, :data:`BIRTH_FRACTION`): the static-scene pool of section 3
 measures flow at ~300 corners every frame. Weighed with the same likelihood, those
 correspondences are measurements of independent motion too, and a corner on a small
 far mover is found far sooner than g's uniform samples find it (a 6 x 23 px pedestrian
 gets one of 100 uniform samples every ~20 frames). Some of the importance samples are
 therefore born next to the corners whose likelihood is high. They are draws from the
-"object appears anywhere" prior already updated by those measurements, so their eq. 4
-correction is 1: re-weighting them by ``u / g`` would undo exactly that update.
+"object appears anywhere" prior already updated by those measurements.
 """
 
 from __future__ import annotations
@@ -36,56 +33,24 @@ from numpy.typing import NDArray
 from appliance.config import DetectionConfig
 from appliance.vision.geometry import FloatArray
 
-ROAD_BAND_SHARE = 0.75       # share of g's mass in the road band ("road" importance)
-ROAD_BAND_ABOVE = 0.125      # the band starts this fraction of the image height above the horizon
+WEIGHT_FLOOR = 0.02      # a particle is resampled with a weight of at least this: fewer clumps
+                         #   on false evidence, at the cost of slower gathering on objects
+BIRTH_FRACTION = 0.1     # share of the N particles born next to static-pool correspondences
+BIRTH_LIKELIHOOD = 0.5   # a correspondence with at least this likelihood seeds births
+BIRTH_SPREAD_PX = 3.0    # px, std of a birth around its correspondence's end point
 
 
 @dataclass(frozen=True)
 class ImportanceDensity:
-    """Importance function g over a width x height image.
-
-    ``band_top`` None: uniform. Otherwise a mixture: ``band_share`` of the mass
-    uniform over rows ``v >= band_top``, the rest uniform over the whole image.
-    """
+    """Importance function g: uniform over a width x height image."""
 
     width: int
     height: int
-    band_top: float | None = None
-    band_share: float = ROAD_BAND_SHARE
-
-    def _band(self) -> tuple[float, float] | None:
-        if self.band_top is None:
-            return None
-        top = float(np.clip(self.band_top, 0.0, self.height - 1.0))
-        return top, (self.height - top) / self.height   # top row, band area / image area
 
     def sample(self, rng: np.random.Generator, n: int) -> FloatArray:
         """n positions (n, 2) px drawn from g."""
         u = rng.random((n, 2))
-        pos = np.column_stack([u[:, 0] * (self.width - 1.0), u[:, 1] * (self.height - 1.0)])
-        band = self._band()
-        if band is not None:
-            top = band[0]
-            in_band = rng.random(n) < self.band_share
-            pos[in_band, 1] = top + u[in_band, 1] * (self.height - 1.0 - top)
-        return pos
-
-    def correction(self, uv: NDArray[np.floating]) -> FloatArray:
-        """Eq. 4's factor ``u / g`` at positions (n, 2): 1 everywhere for uniform g."""
-        uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
-        band = self._band()
-        if band is None:
-            return np.ones(len(uv))
-        top, area = band
-        g_over_u = (1.0 - self.band_share) + np.where(uv[:, 1] >= top, self.band_share / area, 0.0)
-        return 1.0 / g_over_u
-
-
-def road_importance(width: int, height: int, horizon_row: float | None) -> ImportanceDensity:
-    """g biased to the band from a little above the horizon to the bottom of the image."""
-    if horizon_row is None or not np.isfinite(horizon_row) or horizon_row >= height - 1:
-        return ImportanceDensity(width, height)
-    return ImportanceDensity(width, height, band_top=horizon_row - ROAD_BAND_ABOVE * height)
+        return np.column_stack([u[:, 0] * (self.width - 1.0), u[:, 1] * (self.height - 1.0)])
 
 
 BIRTHS_PER_POINT = 4   # births at most per seeding correspondence: one noisy corner seeds a few, not all
@@ -130,66 +95,45 @@ def systematic_resample(weights: NDArray[np.floating], n: int, offset: float) ->
 
 
 def resampling_weights(likelihood: NDArray[np.floating], valid: NDArray[np.bool_],
-                       correction: NDArray[np.floating], floor: float) -> FloatArray:
-    """Weights for resampling: likelihood (floored) times eq. 4's correction; 0 where invalid."""
-    w = np.maximum(np.asarray(likelihood, dtype=np.float64), floor) * correction
+                       floor: float) -> FloatArray:
+    """Weights for resampling: the likelihood, at least ``floor``; 0 where the flow is invalid."""
+    w = np.maximum(np.asarray(likelihood, dtype=np.float64), floor)
     return np.where(np.asarray(valid, dtype=bool) & np.isfinite(w), w, 0.0)
 
 
-def next_particles(x_cur: NDArray[np.floating], likelihood: NDArray[np.floating],
-                   valid: NDArray[np.bool_], correction: NDArray[np.floating],
-                   g: ImportanceDensity, cfg: DetectionConfig,
-                   rng: np.random.Generator) -> tuple[FloatArray, FloatArray]:
-    """Fig. 4: resample, diffuse, add importance samples (:func:`resample_particles`
-    without the parents)."""
-    out, corr, _, _ = resample_particles(x_cur, likelihood, valid, correction, g, cfg, rng)
-    return out, corr
-
-
 def resample_particles(x_cur: NDArray[np.floating], likelihood: NDArray[np.floating],
-                       valid: NDArray[np.bool_], correction: NDArray[np.floating],
-                       g: ImportanceDensity, cfg: DetectionConfig, rng: np.random.Generator,
-                       births: NDArray[np.floating] | None = None
-                       ) -> tuple[FloatArray, FloatArray, NDArray[np.int64], FloatArray]:
+                       valid: NDArray[np.bool_], g: ImportanceDensity, cfg: DetectionConfig,
+                       rng: np.random.Generator, births: NDArray[np.floating] | None = None,
+                       weight_floor: float = WEIGHT_FLOOR) -> FloatArray:
     """Fig. 4: resample, diffuse, add importance samples.
 
     x_cur: (N, 2) particle positions in the current frame (ends of the measured
-    flow: the motion model of the prediction step); likelihood, valid, correction:
-    (N,) each. Returns the positions (cfg.particles, 2) where flow is measured in
-    the next frame, their eq. 4 corrections (1 for resampled particles), the index
-    of each one's parent in x_cur (-1 for a sample of g) and its diffusion offset (px).
+    flow: the motion model of the prediction step); likelihood, valid: (N,) each.
+    Returns the positions (cfg.particles, 2) where flow is measured in the next frame.
     With no valid particle (black frame, all tracks lost) every particle comes from g.
-    ``births`` (M, 2) (:func:`birth_positions`) take the first M importance slots, with
-    correction 1 and parent -1.
+    ``births`` (M, 2) (:func:`birth_positions`) take the first M importance slots.
     """
     n = cfg.particles
     n_imp = round(cfg.importance_fraction * n)
-    w = resampling_weights(likelihood, valid, correction, cfg.weight_floor)
+    w = resampling_weights(likelihood, valid, weight_floor)
     total = float(w.sum())
     if total <= 0.0:
         n_imp = n
     n_res = n - n_imp
     out = np.empty((n, 2))
-    corr = np.ones(n)
-    parent = np.full(n, -1, dtype=np.int64)
-    offset = np.zeros((n, 2))
     if n_res > 0:
         idx = systematic_resample(w / total, n_res, float(rng.random()))
-        offset[:n_res] = rng.normal(0.0, cfg.diffusion_px, (n_res, 2))
-        out[:n_res] = np.asarray(x_cur, dtype=np.float64)[idx] + offset[:n_res]
-        parent[:n_res] = idx
+        diffusion = rng.normal(0.0, cfg.diffusion_px, (n_res, 2))
+        out[:n_res] = np.asarray(x_cur, dtype=np.float64)[idx] + diffusion
     # particles diffused out of the image are drawn from g instead (clipping them to the
     # border would pile them up in the corners, where the flow leaves the image)
     outside = np.zeros(n, dtype=bool)
     outside[:n_res] = ((out[:n_res, 0] < 0.0) | (out[:n_res, 0] > g.width - 1.0)
                        | (out[:n_res, 1] < 0.0) | (out[:n_res, 1] > g.height - 1.0))
     outside[n_res:] = True
-    if births is not None and len(births) and n_imp > 0:   # correction 1, parent -1 as set above
+    if births is not None and len(births) and n_imp > 0:
         b = np.asarray(births, dtype=np.float64).reshape(-1, 2)[:n_imp]
         out[n_res:n_res + len(b)] = b
         outside[n_res:n_res + len(b)] = False
-    fresh = g.sample(rng, int(outside.sum()))
-    out[outside] = fresh
-    corr[outside] = g.correction(fresh)
-    parent[outside] = -1
-    return out, corr, parent, offset
+    out[outside] = g.sample(rng, int(outside.sum()))
+    return out

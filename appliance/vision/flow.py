@@ -3,7 +3,7 @@
 OpenCV's Python binding cannot take a prebuilt pyramid (``calcOpticalFlowPyrLK``
 rejects the list ``buildOpticalFlowPyramid`` returns), so each frame's pyramid is
 built once by tracking the particle pool and the static pool in *one* forward
-call; the backward check of the points that need it is one more call.
+call; the backward check is one more call.
 """
 
 from __future__ import annotations
@@ -20,15 +20,16 @@ from appliance.vision.geometry import FloatArray, in_image
 CORNER_MIN_EIGENVALUE = 1e-3   # cornerMinEigenVal on 8-bit input; flat or black image: 0
 CORNER_QUALITY = 0.01          # a candidate needs at least this fraction of the best cell's value
 
-
-GAUSSIAN_L1_TO_STD = 1.2533   # sqrt(pi / 2): std of a zero-mean Gaussian from its mean |x|
-FLOW_PRIOR_STD_PX = 10.0      # px, what is known of a flow before its window is looked at
+LK_MAX_ITERATIONS = 20         # LK iterations per pyramid level at most
+LK_EPSILON_PX = 0.03           # px, LK stops once an iteration moves the window less than this
+LK_MIN_EIGENVALUE = 1e-3       # smallest eigenvalue of a window's gradient matrix / pixels
+                               #   (OpenCV's minEigThreshold): weaker texture is not tracked
+FB_ERROR_GAIN = 15.0           # a flow's std grows by this times its forward-backward error (px)
 
 
 @dataclass(frozen=True)
 class Tracks:
-    """Result of :func:`track`: end points (M, 2) px, valid (M,) bool, fb_error (M,) px,
-    residual (M,): LK's mean absolute patch difference after alignment (gray levels).
+    """Result of :func:`track`: end points (M, 2) px, valid (M,) bool, fb_error (M,) px.
 
     ``fb_error`` is NaN where no backward check was made.
     """
@@ -36,17 +37,17 @@ class Tracks:
     end: FloatArray
     valid: NDArray[np.bool_]
     fb_error: FloatArray
-    residual: FloatArray
 
 
 def lk_params(cfg: FlowConfig) -> dict[str, object]:
-    """Keyword arguments of ``cv2.calcOpticalFlowPyrLK`` from the ``[flow]`` section."""
+    """Keyword arguments of ``cv2.calcOpticalFlowPyrLK``: the ``[flow]`` section's window and
+    pyramid, and this module's termination criteria."""
     return {
         "winSize": (cfg.window_px, cfg.window_px),
         "maxLevel": cfg.pyramid_levels,
-        "criteria": (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, cfg.max_iterations,
-                     cfg.epsilon),
-        "minEigThreshold": cfg.min_eigenvalue,
+        "criteria": (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, LK_MAX_ITERATIONS,
+                     LK_EPSILON_PX),
+        "minEigThreshold": LK_MIN_EIGENVALUE,
     }
 
 
@@ -70,8 +71,7 @@ def track(prev: NDArray[np.uint8], cur: NDArray[np.uint8], points: NDArray[np.fl
     m = pts.shape[0]
     h, w = prev.shape[:2]
     if m == 0:
-        empty = np.zeros((0, 2))
-        return Tracks(empty, np.zeros(0, dtype=bool), np.zeros(0), np.zeros(0))
+        return Tracks(np.zeros((0, 2)), np.zeros(0, dtype=bool), np.zeros(0))
     params = lk_params(cfg)
     init: NDArray[np.float32] | None = None
     if guess is not None:
@@ -79,7 +79,7 @@ def track(prev: NDArray[np.uint8], cur: NDArray[np.uint8], points: NDArray[np.fl
         params["flags"] = cv2.OPTFLOW_USE_INITIAL_FLOW
     # OpenCV writes its answer into the initial-flow array: hand it a copy, the guess is needed below
     start = None if init is None else init.copy()
-    nxt, status, lk_err = cv2.calcOpticalFlowPyrLK(prev, cur, pts, start, **params)  # type: ignore[call-overload]
+    nxt, status, _ = cv2.calcOpticalFlowPyrLK(prev, cur, pts, start, **params)  # type: ignore[call-overload]
     end = nxt.reshape(-1, 2).astype(np.float64)
     valid = status.reshape(-1).astype(bool) & np.all(np.isfinite(end), axis=1)
     # the LK window must lie inside both images: where it reaches over the border OpenCV
@@ -101,10 +101,7 @@ def track(prev: NDArray[np.uint8], cur: NDArray[np.uint8], points: NDArray[np.fl
         fb_error[back] = err
         ok = status_b.reshape(-1).astype(bool) & (err < cfg.fb_threshold_px)
         valid[back] = ok
-    with np.errstate(invalid="ignore"):   # OpenCV leaves the residual of lost points undefined
-        residual = np.asarray(lk_err, dtype=np.float64).reshape(-1)
-    residual = np.where(np.isfinite(residual) & valid, residual, np.inf)
-    return Tracks(end, valid, fb_error, residual)
+    return Tracks(end, valid, fb_error)
 
 
 def flow_into(prev: NDArray[np.uint8], cur: NDArray[np.uint8], points: NDArray[np.floating],
@@ -117,46 +114,6 @@ def flow_into(prev: NDArray[np.uint8], cur: NDArray[np.uint8], points: NDArray[n
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     back = track(cur, prev, pts, np.ones(len(pts), dtype=bool), cfg, guess=guess)
     return pts - back.end, back.valid
-
-
-def flow_covariance(prev: NDArray[np.uint8], points: NDArray[np.floating],
-                    residual: NDArray[np.floating], window_px: int) -> FloatArray:
-    """Covariance (M, 3) ``[c_uu, c_uv, c_vv]`` px^2 of Lucas-Kanade flows from ``points``.
-
-    LK is a least-squares fit of a shift to the patch: its covariance is the residual
-    variance s^2 times the inverse of the window's gradient matrix
-    ``G = sum [Ix^2, IxIy; IxIy, Iy^2]`` (gray levels / px, central differences of
-    ``prev`` around each point rounded to the pixel grid), s taken from LK's mean absolute
-    difference (M,) (gray levels) as for a Gaussian. With a weak prior on the flow
-    (``FLOW_PRIOR_STD_PX``), ``C = s^2 (G + s^2 / prior^2 I)^-1`` stays finite: along an
-    edge (the aperture problem) or in a flat window the flow is only known to about the
-    prior. A point without a residual (LK lost it) gets the prior.
-    """
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    m = pts.shape[0]
-    if m == 0:
-        return np.zeros((0, 3))
-    h, w = prev.shape[:2]
-    r = window_px // 2
-    q = np.rint(pts).astype(np.int64)
-    q[:, 0] = np.clip(q[:, 0], r + 1, w - r - 2)
-    q[:, 1] = np.clip(q[:, 1], r + 1, h - r - 2)
-    off = np.arange(-r - 1, r + 2)
-    patch = prev[q[:, 1, None, None] + off[None, :, None],
-                 q[:, 0, None, None] + off[None, None, :]].astype(np.float64)
-    ix = 0.5 * (patch[:, 1:-1, 2:] - patch[:, 1:-1, :-2])
-    iy = 0.5 * (patch[:, 2:, 1:-1] - patch[:, :-2, 1:-1])
-    s2 = (GAUSSIAN_L1_TO_STD * np.asarray(residual, dtype=np.float64).reshape(-1)) ** 2
-    known = np.isfinite(s2)
-    s2 = np.where(known, s2, 1.0)
-    eps = s2 / FLOW_PRIOR_STD_PX ** 2
-    gxx = np.einsum("kij,kij->k", ix, ix) + eps
-    gxy = np.einsum("kij,kij->k", ix, iy)
-    gyy = np.einsum("kij,kij->k", iy, iy) + eps
-    scale = s2 / (gxx * gyy - gxy * gxy)
-    cov = np.column_stack([gyy * scale, -gxy * scale, gxx * scale])
-    cov[~known] = (FLOW_PRIOR_STD_PX ** 2, 0.0, FLOW_PRIOR_STD_PX ** 2)
-    return cov
 
 
 def corner_candidates(gray: NDArray[np.uint8], cell_px: int) -> tuple[FloatArray, FloatArray]:
@@ -188,38 +145,16 @@ def corner_candidates(gray: NDArray[np.uint8], cell_px: int) -> tuple[FloatArray
     return pos[keep], strength[keep]
 
 
-def lk_covariance(prev: NDArray[np.uint8], points: NDArray[np.floating],
-                  residual: NDArray[np.floating], window_px: int, residual_gain: float,
-                  image_noise_gray: float, fb_error: NDArray[np.floating] | None = None,
-                  fb_gain: float = 0.0) -> FloatArray | None:
-    """Each flow's error covariance (M, 3) px^2 for the likelihood, or None when every term is off.
+def fb_covariance(fb_error: NDArray[np.floating], gain: float = FB_ERROR_GAIN) -> FloatArray:
+    """Each flow's error covariance (M, 3) ``[c_uu, c_uv, c_vv]`` px^2 from its forward-backward
+    error (M,) px: ``(gain x fb_error)^2`` on both axes (NaN: not checked, counts 0).
 
-    ``residual_gain^2`` times :func:`flow_covariance` with LK's own residual, plus
-    ``image_noise_gray^2 G^-1``: the covariance of a window with gradient matrix G under
-    a fixed intensity noise (gray levels). The second term is what the aperture problem
-    costs: on road texture streaked along the image rows (foreshortening) the column
-    component of the flow is barely constrained, and measured LK errors across the
-    epipolar line grow about as ``6 gray levels x sqrt(d^T G^-1 d)`` (median) on the
-    simulator's bend, with a tail several times longer.
-
-    Plus ``(fb_gain x fb_error)^2`` on both axes: the forward-backward disagreement
-    (M,) px of each flow (NaN: not checked, counts 0) is a direct sample of its error.
-    On the simulator's static bend the flows that look independent have a median FB
-    error of 0.15 px against 0.01 px on the crossing car and cyclist, while their true
-    error is 1-3 px: LK is consistently wrong both ways on streaky texture, so a small
-    FB error stands for a much larger one.
+    The forward-backward disagreement is a direct sample of a flow's error, and a small one
+    stands for a much larger one: on road texture streaked along the image rows LK is wrong
+    the same way in both directions (on the simulator's static bend the flows that look
+    independent disagree by 0.15 px, median, while their true error is 1-3 px; flows on
+    crossing cars and cyclists disagree by 0.01 px).
     """
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    total: FloatArray | None = None
-    if residual_gain > 0.0:
-        total = residual_gain ** 2 * flow_covariance(prev, pts, residual, window_px)
-    if image_noise_gray > 0.0:
-        s = np.full(len(pts), image_noise_gray / GAUSSIAN_L1_TO_STD)
-        c = flow_covariance(prev, pts, s, window_px)
-        total = c if total is None else total + c
-    if fb_gain > 0.0 and fb_error is not None:
-        fb = np.asarray(fb_error, dtype=np.float64).reshape(-1)
-        var = (fb_gain * np.where(np.isfinite(fb), fb, 0.0)) ** 2
-        c = np.column_stack([var, np.zeros_like(var), var])
-        total = c if total is None else total + c
-    return total
+    fb = np.asarray(fb_error, dtype=np.float64).reshape(-1)
+    var = (gain * np.where(np.isfinite(fb), fb, 0.0)) ** 2
+    return np.column_stack([var, np.zeros_like(var), var])

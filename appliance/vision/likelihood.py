@@ -20,15 +20,15 @@ static scene), combined as ``detection.likelihood`` says:
 
 Degenerate cases, handled explicitly:
 
-* near the epipole (``d_e < epipole_radius_px``) and for near-zero flow
-  (``d_l < min_flow_px``) the direction is undefined: the direction cue is 0;
+* near the epipole (``d_e < EPIPOLE_RADIUS_PX``) and for near-zero flow
+  (``d_l < MIN_FLOW_PX``) the direction is undefined: the direction cue is 0;
 * eq. 5's ``arcsin(sigma / d)`` is continued past ``sigma > d`` as
   ``(pi/2) sigma / d``, so a flow shorter than its own noise gets an ever wider
   sigma_l and an ever weaker direction cue instead of a NaN;
 * above the horizon there is no road behind the pixel: the magnitude cue takes the
   depth of the pixel's foot point, the bottom of the previous p(x) region it stands on
-  (:func:`foot_points`, ``foot_probability``; at most ``foot_max_height_m`` above the
-  road), and is 0 where there is none; without a metric translation (CAN missing) it is 0;
+  (:func:`foot_points`; at most ``FOOT_MAX_HEIGHT_M`` above the road), and is 0 where there
+  is none; without a metric translation (CAN missing) it is 0;
 * where the road's static flow (a lower bound of any static flow there) is longer
   than ``max_flow_px``, pyramidal LK cannot have measured it: both cues are 0;
 * at a standstill only the standstill cue is used, whatever the mode.
@@ -44,7 +44,10 @@ from numpy.typing import NDArray
 from appliance.config import DetectionConfig
 from appliance.vision.geometry import FloatArray
 
-MIN_RAY_DROP = 1e-6   # a ray must point down the road normal by this much to meet the road
+MIN_RAY_DROP = 1e-6        # a ray must point down the road normal by this much to meet the road
+MIN_FLOW_PX = 0.15         # px, translational flow shorter than this has no usable direction
+EPIPOLE_RADIUS_PX = 12.0   # px, within this distance of the epipole the direction is undefined
+FOOT_MAX_HEIGHT_M = 2.0    # m, no road user is taller: a pixel higher above its foot has none
 
 
 @dataclass(frozen=True)
@@ -106,18 +109,6 @@ def road_depth(road: RoadPlane, K: FloatArray, uv: NDArray[np.floating]) -> Floa
         return np.where(drop < -MIN_RAY_DROP, -road.height_m / drop, np.nan)
 
 
-def horizon_row(road: RoadPlane, K: FloatArray) -> float | None:
-    """Row (ideal px) where the road's vanishing line crosses the principal column, or None.
-
-    The vanishing line is ``K^-T n``; at ``u = c_x`` it gives ``v = c_y - f_y n_z / n_y``.
-    None when the line is (nearly) vertical in the image.
-    """
-    n = road.normal
-    if abs(n[1]) < 1e-6:
-        return None
-    return float(K[1, 2] - K[1, 1] * n[2] / n[1])
-
-
 def _angular_error(sigma: float | FloatArray, d: FloatArray) -> FloatArray:
     """``arcsin(sigma / d)`` of eq. 5, continued as ``(pi/2) sigma / d`` beyond sigma = d (rad)."""
     with np.errstate(divide="ignore"):
@@ -137,12 +128,13 @@ def direction_cue(flow_t: FloatArray, static_dir: FloatArray, d_e: FloatArray,
     sp = cfg.sigma_p_px if sigma_p is None else sigma_p
     sigma_l = _angular_error(cfg.sigma_e_px, d_e) + _angular_error(sp, d_l)  # eq. 5
     p = 1.0 - np.exp(-alpha**2 / (2.0 * sigma_l**2))                                   # eq. 6
-    defined = (d_l >= cfg.min_flow_px) & (d_e >= cfg.epipole_radius_px)
+    defined = (d_l >= MIN_FLOW_PX) & (d_e >= EPIPOLE_RADIUS_PX)
     return np.where(defined & np.isfinite(p), p, 0.0)
 
 
 def road_static_flow(x_cur: FloatArray, motion: CameraMotion, road: RoadPlane | None,
-                     foot: FloatArray | None = None, max_height_m: float = 2.0) -> FloatArray:
+                     foot: FloatArray | None = None,
+                     max_height_m: float = FOOT_MAX_HEIGHT_M) -> FloatArray:
     """Translational flow (N, 2) px of a road point seen at ``x_cur``: the shortest static flow there.
 
     A static point seen at ``x_cur`` at depth Z has ``f_s = ((K t)_xy - t_z x_cur) / (Z - t_z)``
@@ -213,12 +205,10 @@ def flow_std(flow_cov: FloatArray | None, static_dir: FloatArray, cfg: Detection
     """Each flow's std (px) across and along the static direction, or (None, None).
 
     ``sigma_p`` of eq. 5 is "the accuracy of the tracking process"; the paper gives one
-    number for every flow. A flow measured along an edge (lane marking, kerb, bumper) is
-    only known across the edge, one in low contrast or across an occlusion boundary
-    (large LK residual) is poorly known both ways. So each flow gets
-    ``sqrt(sigma_p^2 + d^T C d)`` with C (N, 3) px^2 its LK covariance
-    (``flow.flow_covariance``, scaled as :func:`lk_covariance` says) and d the unit
-    vector across / along the static direction (C None: the paper's constant sigma_p).
+    number for every flow. Here each flow gets ``sqrt(sigma_p^2 + d^T C d)`` with C (N, 3)
+    px^2 its error covariance ``[c_uu, c_uv, c_vv]`` (:func:`~appliance.vision.flow.fb_covariance`)
+    and d the unit vector across / along the static direction (C None: the paper's
+    constant sigma_p).
     """
     if flow_cov is None:
         return None, None
@@ -266,7 +256,7 @@ def motion_cues(x_prev: NDArray[np.floating], x_cur: NDArray[np.floating], motio
         d_e = np.full(len(p), np.inf)
     s_across, s_along = flow_std(flow_cov, static_dir, cfg)
     direction = direction_cue(flow_t, static_dir, d_e, cfg, s_across)
-    f_s = road_static_flow(x_cur, motion, road, foot, cfg.foot_max_height_m)
+    f_s = road_static_flow(x_cur, motion, road, foot)
     magnitude = magnitude_cue_from_static(flow_t, f_s, cfg, s_along)
     # where even the shortest static flow is beyond the reach of pyramidal LK, a measured
     # flow says nothing (typically the bottom of the image at speed): both cues are 0

@@ -25,6 +25,7 @@ from appliance.vision.geometry import (
 )
 
 MIN_TRANSLATION_M = 1e-6   # m, below this the translation has no direction
+WIDE_PRIOR_FACTOR = 10.0   # the prior's sigmas grow by this while CAN or the PTU is missing or stale
 
 
 @dataclass(frozen=True)
@@ -77,7 +78,7 @@ def prior_motion(mount: MountConfig, refinement: RefinementConfig, prev: SensorS
     Missing, stale or NaN CAN data (``can_valid`` False or non-finite values) give a
     prior that assumes straight forward driving at the last finite speed (unit
     length, ``metric`` False, when there is none), with every sigma multiplied by
-    ``refinement.wide_prior_factor``; an invalid PTU widens it the same way.
+    :data:`WIDE_PRIOR_FACTOR`; an invalid PTU widens it the same way.
     """
     can_ok = prev.can_valid and cur.can_valid
     speeds = _finite(prev.speed_m_s, cur.speed_m_s)
@@ -116,6 +117,6 @@ def prior_motion(mount: MountConfig, refinement: RefinementConfig, prev: SensorS
                       refinement.sigma_rot_z_rad])
     wide = not (can_ok and ptu_ok)
     if wide:
-        sigma = sigma * refinement.wide_prior_factor
+        sigma = sigma * WIDE_PRIOR_FACTOR
     return PriorMotion(R=R, t_m=t, theta=theta, sigma=sigma, standstill=bool(standstill),
                        wide=wide, metric=metric and can_ok)

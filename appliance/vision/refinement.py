@@ -25,8 +25,13 @@ from appliance.vision.geometry import FloatArray
 from appliance.vision.lm import BatchedResiduals, batched_lm
 from appliance.vision.msac import truncated_loss, weighted_minimal_samples
 
+MIN_CORRESPONDENCES = 12      # fewer correspondences or inliers: the prior is kept, not confident
+SAMPLE_SIZE = 5               # correspondences per minimal sample (fig. 6, step 1): five unknowns
+HYPOTHESIS_ITERATIONS = 3     # Levenberg-Marquardt iterations of each minimal-sample hypothesis
+FINAL_ITERATIONS = 8          # Levenberg-Marquardt iterations of the final MAP estimate at most
 HYPOTHESIS_TOLERANCE = 1e-6   # rad: 1e-6 rad moves a pixel by < 0.001 px, enough to score
 FINAL_TOLERANCE = 1e-7        # rad: 1e-7 rad moves a pixel by < 1e-4 px
+
 
 @dataclass(frozen=True)
 class MapProblem:
@@ -115,31 +120,31 @@ def refine_motion(problem: MapProblem, x_prev: NDArray[np.floating], x_cur: NDAr
     sample_weights: (M,) ``1 - p(x)`` at each correspondence (fig. 6, step 1).
     Hypotheses are the prior mean plus ``cfg.msac_hypotheses`` MAP estimates from
     minimal samples; the one with the least truncated loss wins and is re-estimated
-    on its inliers. Fewer than ``cfg.min_correspondences`` correspondences or
+    on its inliers. Fewer than :data:`MIN_CORRESPONDENCES` correspondences or
     inliers keep the prior (``confident`` False).
     """
     x_prev = np.asarray(x_prev, dtype=np.float64).reshape(-1, 2)
     x_cur = np.asarray(x_cur, dtype=np.float64).reshape(-1, 2)
     m = x_prev.shape[0]
     keep_prior = Refinement(problem.theta_bar.copy(), np.zeros(m, dtype=bool), False)
-    if m < max(cfg.min_correspondences, cfg.msac_sample_size):
+    if m < MIN_CORRESPONDENCES:
         return keep_prior
 
     # fig. 6 steps 1-2: minimal samples drawn with probability 1 - p(x), MAP estimate of each
-    idx = weighted_minimal_samples(rng, sample_weights, cfg.msac_hypotheses, cfg.msac_sample_size)
+    idx = weighted_minimal_samples(rng, sample_weights, cfg.msac_hypotheses, SAMPLE_SIZE)
     start = np.repeat(problem.theta_bar[None, :], cfg.msac_hypotheses, axis=0)
     hyp, _ = batched_lm(map_residuals(problem, x_prev[idx], x_cur[idx]), start,
-                        cfg.msac_lm_iterations, tolerance=HYPOTHESIS_TOLERANCE)
+                        HYPOTHESIS_ITERATIONS, tolerance=HYPOTHESIS_TOLERANCE)
     candidates = np.vstack([problem.theta_bar[None, :], hyp])
     # fig. 6 steps 3-4: errors of every correspondence, truncated loss, least loss wins
     delta = correspondence_errors(problem, candidates, x_prev, x_cur)
     loss = truncated_loss(delta, cfg.msac_threshold_px)
     best = int(np.argmin(loss))
     inliers = delta[best] < cfg.msac_threshold_px
-    if int(inliers.sum()) < cfg.min_correspondences:
+    if int(inliers.sum()) < MIN_CORRESPONDENCES:
         return keep_prior
     final, _ = batched_lm(map_residuals(problem, x_prev[inliers], x_cur[inliers]),
-                          candidates[best][None, :], cfg.lm_iterations, tolerance=FINAL_TOLERANCE)
+                          candidates[best][None, :], FINAL_ITERATIONS, tolerance=FINAL_TOLERANCE)
     theta = final[0]
     inliers = correspondence_errors(problem, theta, x_prev, x_cur)[0] < cfg.msac_threshold_px
     return Refinement(theta, inliers, True)

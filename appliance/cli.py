@@ -15,6 +15,7 @@ from typing import NoReturn
 
 from appliance import __version__
 from appliance.errors import ApplianceError
+from appliance.evaluation.columns import legend
 
 PROG = "collision-warning"
 
@@ -54,7 +55,14 @@ def build_parser() -> argparse.ArgumentParser:
 
     rp = sub.add_parser("replay", help="run the pipeline on a drive recording")
     rp.add_argument("recording", help="drive recording directory")
-    rp.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    rp.add_argument(
+        "--out", required=True, metavar="DIR", help="output directory (new or empty)"
+    )
+    rp.add_argument(
+        "--force",
+        action="store_true",
+        help="--out holds an earlier run: remove its files (outputs, evaluation, videos) first",
+    )
     rp.add_argument("--config", help="TOML file overriding config/default.toml")
     rp.add_argument(
         "--realtime",
@@ -87,7 +95,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     demo.add_argument("--config", help="TOML file overriding config/default.toml")
 
-    ev = sub.add_parser("evaluate", help="score a run against the recording's truth.json")
+    ev = sub.add_parser(
+        "evaluate",
+        help="score a run against the recording's truth.json",
+        description="Score a run against the recording's truth.json: prints a table, writes\n"
+        "evaluation.json and timeline.png into RUN_DIR. A run that did not finish (no\n"
+        "summary.json) is refused.",
+        epilog="columns of the table:\n" + legend(),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     ev.add_argument("recording", help="simulated drive recording (with truth.json)")
     ev.add_argument("run_dir", help="output directory of a replay or run")
 

@@ -203,16 +203,9 @@ def play_live(
 
 
 def replay_realtime(
-    rec: Recording, cfg: Config, out_dir: Path, video: str | None = None, buses: Buses | None = None
+    rec: Recording, cfg: Config, out_dir: Path, buses: Buses | None = None
 ) -> RunStats:
     """``replay --realtime``: private virtual buses unless the configuration names real ones."""
-    if video:
-        from appliance.errors import UsageError
-
-        raise UsageError(
-            "--video is only available without --realtime (replay the same recording "
-            "as fast as possible to draw it)"
-        )
     stats, summary = play_live(
         rec,
         cfg,

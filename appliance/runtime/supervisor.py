@@ -34,7 +34,7 @@ from appliance.runtime.sd_notify import SdNotifier
 from appliance.runtime.sensor_sync import SensorSync
 from appliance.runtime.wiring import hmi_status, hmi_warning
 from drivers.camera import CameraFrame, FrameSource
-from drivers.hmi_can import HmiCanWriter
+from drivers.hmi_can import HmiCanStats, HmiCanWriter
 from drivers.link import LinkState
 from drivers.ptu import PtuSample
 from drivers.vehicle_signals import SignalKind, VehicleSignal
@@ -83,6 +83,7 @@ class RunStats:
     warnings: list[WarningEvent] = field(default_factory=list)
     first_frame_t: float | None = None
     last_frame_t: float | None = None
+    hmi: HmiCanStats | None = None  # what the HMI writer sent, once it has stopped
 
 
 class Supervisor:
@@ -184,6 +185,8 @@ class Supervisor:
             if part is not None:
                 part.stop(timeout=0.5)
                 log.debug("stopped %s", type(part).__name__)
+        if inputs.hmi is not None:
+            self.stats.hmi = inputs.hmi.stats
         for player in inputs.players:  # after the drivers, so a simulator outlives its driver
             player.stop()
         self.outputs.flush()
@@ -355,6 +358,9 @@ def describe_warning(w: WarningEvent) -> str:
 def run_summary(
     stats: RunStats, cfg: Config, extra: dict[str, Any] | None = None
 ) -> dict[str, Any]:
+    """``summary.json`` of a live run: ``can_frames_sent`` is what the HMI writer put on the
+    bus (and logged in ``can_out.log``); ``hmi_can`` also counts the frames it could not send."""
+    hmi = stats.hmi or HmiCanStats()
     return {
         "frames_read": stats.frames_read,
         "frames_processed": stats.frames_processed,
@@ -362,5 +368,14 @@ def run_summary(
         "processing_ms": {k: timing_stats(v) for k, v in stats.stage_ms.items()},
         "status_changes": stats.status_changes,
         "config_digest": cfg.digest(),
+        "can_frames_sent": hmi.sent,
+        "hmi_can": {
+            "produced": hmi.produced,
+            "sent": hmi.sent,
+            "dropped_queue_full": hmi.dropped_queue_full,
+            "expired": hmi.expired,
+            "send_errors": hmi.send_errors,
+            "bus_lost": hmi.bus_lost,
+        },
         **(extra or {}),
     }

@@ -39,7 +39,7 @@ import can
 from drivers.backoff import Backoff
 from drivers.hmi_codec import HmiCodec, HmiStatus, HmiWarning
 from drivers.link import Counters, LinkState, LinkStatus, Reporting
-from drivers.vehicle_can import BusFactory, open_bus
+from drivers.vehicle_can import BusFactory, open_bus, open_error
 
 log = logging.getLogger(__name__)
 
@@ -243,8 +243,9 @@ class HmiCanWriter(Reporting[HmiCanStats]):
         try:
             bus = self._factory(self.interface, self.channel, None, **self._bus_kwargs)
         except (can.CanError, OSError, ValueError, ImportError) as exc:
-            self._counts.add("open_failures", error=f"open {self.interface}:{self.channel}: {exc}")
-            self._status.set(LinkState.LOST, f"cannot open: {exc}")
+            why = open_error(self.interface, self.channel, exc)
+            self._counts.add("open_failures", error=why)
+            self._status.set(LinkState.LOST, why)
             return None
         self._counts.add("opens")
         self._backoff.reset()

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import select
 import signal
 import subprocess
 import sys
@@ -145,11 +146,14 @@ def _level2_intervals(rows: list[dict[str, object]], end: float) -> list[tuple[f
     return out
 
 
-def test_sigterm_stops_the_service_within_2_s(tmp_path: Path) -> None:
+def test_run_without_its_devices_says_so_every_10_s_and_stops_on_sigterm(tmp_path: Path) -> None:
+    """No camera, no PTU, a SocketCAN vehicle bus that cannot open: one line each when it
+    happens, with the likely cause for the CAN bus, then "still waiting" every 10 s; SIGTERM
+    stops it within 2 s."""
     cfg = tmp_path / "live.toml"
     cfg.write_text(
         f'[camera]\ndevice = "{tmp_path}/no-camera"\n[ptu]\nport = "{tmp_path}/no-ptu"\n'
-        '[vehicle_can]\ninterface = "virtual"\nchannel = "cw-sigterm"\n'
+        '[vehicle_can]\ninterface = "socketcan"\nchannel = "cw-no-such-can"\n'
         '[hmi_can]\ninterface = "virtual"\nchannel = "cw-sigterm-hmi"\n'
         f'[runtime]\nout_dir = "{tmp_path}/out"\n'
     )
@@ -161,15 +165,32 @@ def test_sigterm_stops_the_service_within_2_s(tmp_path: Path) -> None:
         env=env,
     )
     assert proc.stderr is not None
-    # wait until it runs (it reports the missing camera once), then stop it
-    for line in proc.stderr:
-        if "running:" in line:
-            break
-    t0 = time.monotonic()
-    proc.send_signal(signal.SIGTERM)
-    rc = proc.wait(timeout=10)
-    elapsed = time.monotonic() - t0
+    seen: list[str] = []
+    deadline = time.monotonic() + 60.0
+    try:
+        # until every missing device was reported again (the first time after 10 s)
+        while time.monotonic() < deadline:
+            if all(any(line.startswith(f"INFO {name}: still waiting after 1") for line in seen)
+                   for name in ("camera", "PTU", "vehicle CAN")):
+                break
+            ready, _, _ = select.select([proc.stderr], [], [], 1.0)
+            if ready:
+                seen.append(proc.stderr.readline().rstrip("\n"))
+        t0 = time.monotonic()
+        proc.send_signal(signal.SIGTERM)
+        rc = proc.wait(timeout=10)
+        elapsed = time.monotonic() - t0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
     rest = proc.stderr.read()
+    assert any("running:" in line for line in seen), seen
+    can_lines = [line for line in seen if "vehicle CAN" in line]
+    assert any("no SocketCAN" in line or "no network interface cw-no-such-can" in line
+               for line in can_lines), can_lines
+    for name in ("camera", "PTU", "vehicle CAN"):
+        again = [line for line in seen if line.startswith(f"INFO {name}: still waiting")]
+        assert len(again) == 1 and "after 10 s" in again[0], (name, seen)
     assert rc == 0, rest
     assert elapsed < 2.0, elapsed
     assert "Traceback" not in rest

@@ -32,6 +32,7 @@ from appliance.runtime.outputs import RunOutputs, timing_stats
 from appliance.runtime.ring_buffer import RingBuffer
 from appliance.runtime.sd_notify import SdNotifier
 from appliance.runtime.sensor_sync import SensorSync
+from appliance.runtime.waiting import StillWaiting
 from appliance.runtime.wiring import hmi_status, hmi_warning
 from drivers.camera import CameraFrame, FrameSource
 from drivers.hmi_can import HmiCanStats, HmiCanWriter
@@ -117,6 +118,7 @@ class Supervisor:
         self._drops: deque[tuple[float, int]] = deque()
         self._warning_level = 0
         self._last_frame = -1
+        self._waiting = StillWaiting()
         self.failure: BaseException | None = None
 
     # ------------------------------------------------------------------ public
@@ -306,7 +308,28 @@ class Supervisor:
             self.on_event(change)
         if inputs.hmi is not None:
             inputs.hmi.publish(status=hmi_status(self.health.status))
+        self._report_missing(inputs, now)
         return self.health.status
+
+    def _report_missing(self, inputs: LiveInputs, now: float) -> None:
+        """Every 10 s, one line per device still lost or silent (``runtime.waiting``)."""
+        if inputs.finished is not None and inputs.finished.is_set():
+            return
+        parts: list[tuple[str, Any, LinkState]] = [
+            ("camera", inputs.camera, inputs.camera.state)
+        ]
+        if inputs.vehicle is not None:
+            parts.append(("vehicle CAN", inputs.vehicle, inputs.vehicle.state_at(time.monotonic())))
+        if inputs.ptu is not None and inputs.ptu_enabled:
+            parts.append(("PTU", inputs.ptu, inputs.ptu.state))
+        if inputs.hmi is not None:
+            parts.append(("HMI CAN", inputs.hmi, inputs.hmi.state))
+        for name, part, state in parts:
+            missing = state in (LinkState.LOST, LinkState.STALE)
+            why = (part.stats.last_error or f"{state.value}: nothing received") if missing else ""
+            line = self._waiting.update(now, name, missing, why)
+            if line is not None:
+                self.on_event(line)
 
     def _clear_warnings(self, inputs: LiveInputs, t: float, state: PipelineState | None) -> None:
         """Camera lost: an active warning is cleared (a blind appliance must not keep warning)."""

@@ -154,6 +154,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     iv.add_argument(
         "--config",
+        metavar="FILE",
         help="TOML file overriding config/default.toml ([vehicle_can] DBC, [mount], "
         "[camera] width)",
     )

@@ -79,7 +79,7 @@ def test_a_missing_device_is_reported_again_every_10_s() -> None:
 
     w = StillWaiting()
     lines = []
-    for k in range(0, 251):  # 25 s missing, updates every 0.1 s
+    for k in range(251):  # 25 s missing, updates every 0.1 s
         now = 100.0 + 0.1 * k
         lines.append((now, w.update(now, "camera", True, "cannot open /dev/video0")))
     said = [(t, line) for t, line in lines if line is not None]

@@ -238,6 +238,9 @@ def test_run_without_its_devices_says_so_every_10_s_and_stops_on_sigterm(tmp_pat
     assert "Traceback" not in rest
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["frames_processed"] == 0
+    # the ApplianceStatus heartbeats the HMI writer sent meanwhile, counted as can_out.log has them
+    sent = (tmp_path / "out" / "can_out.log").read_text().splitlines()
+    assert summary["can_frames_sent"] == len(sent) > 50, (summary, len(sent))
 
 
 def test_recorder_rotates_by_duration_and_each_piece_replays(

@@ -1,4 +1,5 @@
-"""Command line: ``collision-warning run | replay | simulate | demo | evaluate | ptu-sim``.
+"""Command line: ``collision-warning run | replay | simulate | demo | evaluate | ptu-sim |
+import-video``.
 
 Exit status 0 on success, 2 on bad arguments, configuration or input (one line
 naming the file, key or line), 1 on a runtime failure. No traceback unless
@@ -15,6 +16,7 @@ from typing import NoReturn
 
 from appliance import __version__
 from appliance.errors import ApplianceError
+from appliance.evaluation.columns import legend
 
 PROG = "collision-warning"
 
@@ -34,6 +36,7 @@ COMMANDS = {
     "demo": "appliance.demo",
     "evaluate": "appliance.evaluate",
     "ptu-sim": "drivers.ptu_sim",
+    "import-video": "appliance.import_video",
 }
 
 
@@ -54,7 +57,14 @@ def build_parser() -> argparse.ArgumentParser:
 
     rp = sub.add_parser("replay", help="run the pipeline on a drive recording")
     rp.add_argument("recording", help="drive recording directory")
-    rp.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    rp.add_argument(
+        "--out", required=True, metavar="DIR", help="output directory (new or empty)"
+    )
+    rp.add_argument(
+        "--force",
+        action="store_true",
+        help="--out holds an earlier run: remove its files (outputs, evaluation, videos) first",
+    )
     rp.add_argument("--config", help="TOML file overriding config/default.toml")
     rp.add_argument(
         "--realtime",
@@ -87,9 +97,68 @@ def build_parser() -> argparse.ArgumentParser:
     )
     demo.add_argument("--config", help="TOML file overriding config/default.toml")
 
-    ev = sub.add_parser("evaluate", help="score a run against the recording's truth.json")
+    ev = sub.add_parser(
+        "evaluate",
+        help="score a run against the recording's truth.json",
+        description="Score a run against the recording's truth.json: prints a table, writes\n"
+        "evaluation.json and timeline.png into RUN_DIR. A run that did not finish (no\n"
+        "summary.json) is refused.",
+        epilog="columns of the table:\n" + legend(),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     ev.add_argument("recording", help="simulated drive recording (with truth.json)")
     ev.add_argument("run_dir", help="output directory of a replay or run")
+
+    iv = sub.add_parser(
+        "import-video",
+        help="make a drive recording of your own video (a dashcam's), for replay",
+        description="Make a drive recording of a video file: the camera from --fx, --hfov or "
+        "--calibration, the mount from --height and --pitch, the car's speed (and yaw rate) "
+        "from --speed or --speed-csv as CAN frames of the configured vehicle DBC.",
+    )
+    iv.add_argument("video", help="video file (anything OpenCV reads)")
+    iv.add_argument("--out", required=True, metavar="REC", help="recording directory to create")
+    cam = iv.add_mutually_exclusive_group(required=True)
+    cam.add_argument("--fx", type=float, metavar="PX", help="focal length in pixels of the video")
+    cam.add_argument("--hfov", type=float, metavar="DEG", help="horizontal field of view, deg")
+    cam.add_argument(
+        "--calibration",
+        metavar="FILE",
+        help="OpenCV YAML/XML/JSON with camera_matrix, distortion_coefficients "
+        "(image_width, image_height)",
+    )
+    iv.add_argument(
+        "--height", type=float, required=True, metavar="M", help="camera height above the road, m"
+    )
+    iv.add_argument(
+        "--pitch",
+        type=float,
+        required=True,
+        metavar="DEG",
+        help="camera pitch, deg, positive looks down (0: optical axis level)",
+    )
+    speed = iv.add_mutually_exclusive_group(required=True)
+    speed.add_argument(
+        "--speed", type=float, metavar="M/S", help="constant speed straight ahead, m/s"
+    )
+    speed.add_argument(
+        "--speed-csv",
+        metavar="FILE",
+        help="CSV t,speed_m_s[,yaw_rate_rad_s], t in s from the start of the video",
+    )
+    iv.add_argument(
+        "--frames",
+        type=_frame_range,
+        metavar="FIRST:LAST",
+        help="import only these frames of the video (inclusive; either may be left out)",
+    )
+    iv.add_argument(
+        "--config",
+        metavar="FILE",
+        help="TOML file overriding config/default.toml ([vehicle_can] DBC, [mount], "
+        "[camera] width)",
+    )
+    iv.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
 
     ptu = sub.add_parser("ptu-sim", help="simulated pan-tilt unit on a pseudo-terminal")
     ptu.add_argument("--latency", type=float, default=0.0, metavar="S", help="reply latency, s")
@@ -102,6 +171,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ptu.add_argument("--link", metavar="PATH", help="also create a symlink to the pty at PATH")
     return p
+
+
+def _frame_range(text: str) -> tuple[int, int | None]:
+    from appliance.import_video import parse_frames
+
+    return parse_frames(text)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -18,7 +18,7 @@ import json
 import socket
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
 from pathlib import Path
 from typing import Any
 
@@ -33,10 +33,11 @@ from appliance.sim.drive import simulate
 # without collision
 DRIVES = (
     ("car_crossing_intersection", 1, 6.0),
-    ("pedestrian_crossing_nearside", 1, None),
+    ("pedestrian_crossing_nearside", 1, 8.0),
     ("lead_car_braking", 0, 6.0),
     ("pedestrian_stops_at_kerb", 1, 8.0),
 )
+PROGRESS_EVERY_S = 5.0  # s between two progress lines while simulating
 
 
 def socketcan_available(channel: str) -> bool:
@@ -56,21 +57,34 @@ def demo_buses() -> tuple[Buses, str]:
     return Buses.private_virtual(), "python-can virtual buses (no vcan0 on this kernel)"
 
 
-def _simulate(args: tuple[str, int, float | None, str]) -> str:
+def _simulate(args: tuple[str, int, float, str]) -> str:
     scenario, seed, duration, out = args
     simulate(scenario, out, seed=seed, duration=duration)
     return out
 
 
+def written_s(rec: Path) -> float:
+    """Seconds of drive a simulator has written to ``rec`` so far (frames.csv grows row by
+    row, flushed; a row being written is not counted)."""
+    try:
+        rows = (rec / "frames.csv").read_text().splitlines()[1:]
+        times = [float(r.split(",")[1]) for r in rows[:1] + rows[-2:] if r.count(",") == 1]
+    except (OSError, ValueError, IndexError):
+        return 0.0
+    return max(0.0, max(times) - times[0]) if len(times) > 1 else 0.0
+
+
 def prepare_recordings(out: Path) -> list[Path]:
-    """Simulate the demo drives (in parallel), reusing complete ones from an earlier demo."""
-    todo, paths = [], []
+    """Simulate the demo drives (in parallel, a progress line every few seconds), reusing
+    complete ones from an earlier demo, and say which were reused."""
+    todo, paths, reused = [], [], []
     for scenario, seed, duration in DRIVES:
         rec = out / scenario / "recording"
         paths.append(rec)
         try:
             if (rec / "truth.json").is_file():
                 Recording(rec)
+                reused.append(scenario)
                 continue
         except ApplianceError:
             pass
@@ -78,10 +92,24 @@ def prepare_recordings(out: Path) -> list[Path]:
             for p in sorted(rec.rglob("*"), reverse=True):
                 p.unlink() if p.is_file() else p.rmdir()
         todo.append((scenario, seed, duration, str(rec)))
+    if reused:
+        print(f"reusing the recordings of an earlier demo in {out}: {', '.join(reused)} "
+              f"(delete {out} to simulate them again)", flush=True)
     if todo:
-        print(f"simulating {', '.join(t[0] for t in todo)} ...", flush=True)
+        total = sum(t[2] for t in todo)
+        drives = f"{len(todo)} drives" if len(todo) > 1 else "1 drive"
+        print(f"simulating {drives} ({total:.0f} s of driving, on up to 2 cores; "
+              f"progress every {PROGRESS_EVERY_S:.0f} s) ...", flush=True)
+        t0 = time.monotonic()
         with ProcessPoolExecutor(max_workers=min(2, len(todo))) as pool:
-            list(pool.map(_simulate, todo))
+            pending = {pool.submit(_simulate, t) for t in todo}
+            while pending:
+                done, pending = wait(pending, timeout=PROGRESS_EVERY_S, return_when=FIRST_EXCEPTION)
+                for f in done:
+                    f.result()  # a failed simulation ends the demo with its error
+                parts = [f"{name} {min(written_s(Path(rec)), d):.1f}/{d:.0f} s"
+                         for name, _, d, rec in todo]
+                print(f"  {time.monotonic() - t0:3.0f} s: {', '.join(parts)}", flush=True)
     return paths
 
 

@@ -2,9 +2,11 @@
 
 Reads ``truth.json`` (through :class:`~appliance.recording.Recording`) and the
 run's ``tracks.jsonl`` and ``warnings.jsonl`` (spec formats); prints a table;
-writes ``evaluation.json`` and ``timeline.png`` into RUN_DIR. The definitions of
-every score are in :mod:`appliance.evaluation.metrics`. A recording without
-truth or a run directory without outputs is a usage error (exit 2, one line).
+writes ``evaluation.json`` and ``timeline.png`` into RUN_DIR. The table's columns
+are explained in :mod:`appliance.evaluation.columns` (``evaluate --help``), the
+definitions of every score in :mod:`appliance.evaluation.metrics`. A recording
+without truth, a run directory without outputs, or a run that did not finish (no
+``summary.json``: it stopped half way) is a usage error (exit 2, one line).
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from typing import Any, TextIO
 
 from appliance.config import load_config
 from appliance.errors import UsageError
+from appliance.evaluation.columns import COLUMNS
 from appliance.evaluation.metrics import evaluate
 from appliance.evaluation.plot import plot_timeline
 from appliance.evaluation.runfiles import parse_truth, read_tracks, read_warnings
@@ -35,6 +38,13 @@ def evaluate_run(recording: str | Path, run_dir: str | Path, plot: bool = True) 
     if not run.is_dir():
         raise UsageError(f"{run}: run directory not found")
     tracks = read_tracks(run / "tracks.jsonl")
+    if not (run / "summary.json").is_file():
+        with (run / "tracks.jsonl").open() as fh:
+            processed = sum(1 for line in fh if line.strip())
+        raise UsageError(
+            f"{run}: incomplete run: no summary.json (it stopped after {processed} of "
+            f"{rec.n_frames} frames); replay the recording again"
+        )
     warnings = read_warnings(run / "warnings.jsonl")
     cam = rec.meta.camera
     result = evaluate(truth, tracks, warnings, rec.frame_times, (cam.width, cam.height),
@@ -56,19 +66,7 @@ def _fmt(v: Any, spec: str = ".2f") -> str:
     return format(v, spec) if isinstance(v, float) else str(v)
 
 
-TABLE_COLUMNS = (
-    ("scenario", "scenario", "s"),
-    ("collision", "coll", ""),
-    ("worst_detection_delay_frames", "detect(fr)", ""),
-    ("tracked", "tracked", ".0%"),
-    ("lead_time_s", "lead(s)", ".2f"),
-    ("false_level2", "falseL2", ""),
-    ("level1_per_min", "L1/min", ".2f"),
-    ("ttc_rel_error_median", "TTCerr", ".0%"),
-    ("distance_rel_error_median", "distErr", ".0%"),
-    ("ghost_tracks", "ghosts", ""),
-    ("pass", "targets", ""),
-)
+TABLE_COLUMNS = tuple((c.key, c.head, c.spec) for c in COLUMNS)
 
 
 def table_row(r: dict[str, Any]) -> dict[str, str]:
@@ -94,10 +92,13 @@ def main(args: argparse.Namespace) -> int:
     result = evaluate_run(args.recording, args.run_dir)
     print_table([table_row(result)])
     for o in result["objects"]:
+        early = (o["first_detection_frame"] is not None and o["first_eligible_frame"] is not None
+                 and o["first_detection_frame"] < o["first_eligible_frame"])
         print(f"  object {o['id']} ({o['class']}): first eligible frame "
               f"{_fmt(o['first_eligible_frame'])}, first detection "
               f"{_fmt(o['first_detection_frame'])}, delay {_fmt(o['detection_delay_frames'])} "
-              f"frames, tracked {_fmt(o['tracked_fraction'], '.0%')}, tracks {o['track_ids']}")
+              f"frames{' (tracked before it was eligible)' if early else ''}, "
+              f"tracked {_fmt(o['tracked_fraction'], '.0%')}, tracks {o['track_ids']}")
     for c in result["level1_courses"]:
         if c["object"] is None:
             course = "no mover with a known course then"
@@ -109,5 +110,6 @@ def main(args: argparse.Namespace) -> int:
                       f"{c['truth_closest_m']:.2f} m outside the corridor")
         print(f"  level 1 raised at frame {c['frame']} (t {c['t']:.3f}): {course}")
     run = Path(args.run_dir)
-    print(f"wrote {run / 'evaluation.json'} and {run / 'timeline.png'}")
+    print(f"wrote {run / 'evaluation.json'} and {run / 'timeline.png'} "
+          "(the columns: collision-warning evaluate --help)")
     return 0

@@ -26,7 +26,7 @@ from appliance.runtime.outputs import RunOutputs
 from appliance.runtime.recorder import LiveRecorder
 from appliance.runtime.sd_notify import SdNotifier
 from appliance.runtime.supervisor import LiveInputs, Supervisor, run_summary
-from appliance.runtime.wiring import hmi_writer, ptu_driver, vehicle_reader
+from appliance.runtime.wiring import check_config, hmi_writer, ptu_driver, vehicle_reader
 from drivers.camera import create_source
 
 log = logging.getLogger("collision-warning")
@@ -77,6 +77,7 @@ def main(args: argparse.Namespace) -> int:
     logging.basicConfig(level=logging.INFO, stream=sys.stderr, format="%(levelname)s %(message)s")
     # the drivers log a lost camera once; OpenCV would repeat it on every reopen attempt
     cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
+    check_config(cfg)  # before any output is created
     out_dir = Path(args.out or cfg.runtime.out_dir)
     try:
         out_dir.mkdir(parents=True, exist_ok=True)

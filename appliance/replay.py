@@ -6,6 +6,11 @@ by ``runtime.outputs``. Deterministic: two replays of one recording with one
 configuration give identical warnings, tracks, ego-motion and CAN output.
 ``--realtime`` instead plays the recording through the drivers' sources, ring
 buffers and threads, exactly as live (``runtime.supervisor``).
+
+``--config FILE`` is checked as ``run`` checks it (its DBCs and signal names too), even
+where the recording's ``[can]`` table takes the place of its ``[vehicle_can]`` decoding;
+one line says when it does. ``--out`` must be new or empty, or hold an earlier run's files
+with ``--force`` (``runtime.run_dir``).
 """
 
 from __future__ import annotations
@@ -21,14 +26,22 @@ from typing import Any
 
 import can
 
-from appliance.config import Config, load_config
+from appliance.config import Config, load_config, read_toml
+from appliance.errors import UsageError
 from appliance.messages import Frame, StepOutput
 from appliance.pipeline import camera_from_config, init_state, step
 from appliance.recording import Recording, apply_meta
 from appliance.runtime.health import Faults, Health
 from appliance.runtime.outputs import RunOutputs, timing_stats
+from appliance.runtime.run_dir import prepare_run_dir
 from appliance.runtime.sensor_sync import SensorSync
-from appliance.runtime.wiring import hmi_codec, hmi_status, hmi_warning, vehicle_decoder
+from appliance.runtime.wiring import (
+    check_config,
+    hmi_codec,
+    hmi_status,
+    hmi_warning,
+    vehicle_decoder,
+)
 from drivers.hmi_can import HmiScheduler
 from drivers.vehicle_signals import FrameDecodeError, SignalKind
 
@@ -185,16 +198,47 @@ def summary(result: ReplayResult, cfg: Config) -> dict[str, Any]:
     }
 
 
+# the [vehicle_can] keys a recording's [can] table replaces
+DECODING_KEYS = ("dbc", "speed", "speed_unit", "yaw_rate", "yaw_rate_unit", "yaw_rate_sign")
+
+
+def decoding_override(config_path: str, own: Config, used: Config) -> str | None:
+    """One line when the recording's ``[can]`` replaced decoding keys that ``config_path`` set."""
+    named = read_toml(config_path).get("vehicle_can", {})
+    replaced = [
+        k for k in DECODING_KEYS
+        if k in named and getattr(own.vehicle_can, k) != getattr(used.vehicle_can, k)
+    ]
+    if not replaced:
+        return None
+    keys = ", ".join(f"vehicle_can.{k}" for k in replaced)
+    return (
+        f"note: {config_path}: {keys} not used: the recording's meta.toml [can] table "
+        "decodes its CAN (a recording carries its own vehicle's decoding)"
+    )
+
+
 def main(args: argparse.Namespace) -> int:
-    cfg: Config = getattr(args, "cfg", None) or load_config(args.config)
-    rec, cfg = open_recording(args.recording, cfg)
-    out_dir = Path(args.out)
+    if args.realtime and args.video:
+        raise UsageError(
+            "--video is only available without --realtime (replay the same recording "
+            "as fast as possible to draw it)"
+        )
+    own: Config = getattr(args, "cfg", None) or load_config(args.config)
+    if args.config:
+        check_config(own)
+    rec, cfg = open_recording(args.recording, own)
+    if args.config:
+        note = decoding_override(args.config, own, cfg)
+        if note is not None:
+            print(f"collision-warning replay: {note}", file=sys.stderr)
+    out_dir = prepare_run_dir(args.out, args.force)
     if args.realtime:
         from appliance.runtime.realtime_replay import Buses, replay_realtime
 
         # the configured buses when the user gave a configuration, else private virtual ones
         buses = Buses.from_config(cfg) if args.config else Buses.private_virtual()
-        replay_realtime(rec, cfg, out_dir, video=args.video, buses=buses)
+        replay_realtime(rec, cfg, out_dir, buses=buses)
         return 0
     video = None
     on_step = None

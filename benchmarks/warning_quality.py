@@ -50,7 +50,8 @@ def one_run(name: str, seed: int, work: Path, config: str | None, plots: bool) -
     rec = work / f"{name}-seed{seed}"
     run = work / f"{name}-seed{seed}-run"
     steps = [
-        [*CLI, "replay", str(rec), "--out", str(run), "--no-progress"]
+        # --force: a kept DIR's earlier run of this recording is replaced
+        [*CLI, "replay", str(rec), "--out", str(run), "--no-progress", "--force"]
         + (["--config", config] if config else []),
     ]
     if not (rec / "truth.json").exists():  # a kept recording is reused (the simulator is seeded)

@@ -18,7 +18,8 @@ latest state and wakes a scheduler thread (never blocks); frames go to a bounded
 transmit queue (full: the frame is dropped and counted) drained by a sender thread
 that owns the python-can bus, reopens it with back-off when it fails, stamps each
 frame with the monotonic send time and logs it to ``can_out.log`` (candump -L, via
-python-can's ``CanutilsLogWriter``). Frames older than two periods when their turn
+python-can's ``CanutilsLogWriter``; a log left by an earlier writer is replaced, so the log
+and ``stats.sent`` count the same frames). Frames older than two periods when their turn
 comes (the bus was down) are dropped as ``expired`` rather than sent late.
 """
 
@@ -38,7 +39,7 @@ import can
 from drivers.backoff import Backoff
 from drivers.hmi_codec import HmiCodec, HmiStatus, HmiWarning
 from drivers.link import Counters, LinkState, LinkStatus, Reporting
-from drivers.vehicle_can import BusFactory, open_bus
+from drivers.vehicle_can import BusFactory, open_bus, open_error
 
 log = logging.getLogger(__name__)
 
@@ -194,7 +195,7 @@ class HmiCanWriter(Reporting[HmiCanStats]):
                     self._counts.add("dropped_queue_full", error="transmit queue full")
 
     def _send_loop(self) -> None:
-        writer = can.CanutilsLogWriter(str(self._log_path), append=True) if self._log_path else None
+        writer = can.CanutilsLogWriter(str(self._log_path)) if self._log_path else None
         bus: can.BusABC | None = None
         errors = 0
         try:
@@ -242,8 +243,9 @@ class HmiCanWriter(Reporting[HmiCanStats]):
         try:
             bus = self._factory(self.interface, self.channel, None, **self._bus_kwargs)
         except (can.CanError, OSError, ValueError, ImportError) as exc:
-            self._counts.add("open_failures", error=f"open {self.interface}:{self.channel}: {exc}")
-            self._status.set(LinkState.LOST, f"cannot open: {exc}")
+            why = open_error(self.interface, self.channel, exc)
+            self._counts.add("open_failures", error=why)
+            self._status.set(LinkState.LOST, why)
             return None
         self._counts.add("opens")
         self._backoff.reset()

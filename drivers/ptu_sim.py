@@ -292,7 +292,8 @@ class PtuSimulator:
 
 
 def main(args: argparse.Namespace) -> int:
-    """``collision-warning ptu-sim``: print the device path, run until SIGINT/SIGTERM."""
+    """``collision-warning ptu-sim``: print the device path (first line, for scripts) and how to
+    use it, run until SIGINT/SIGTERM."""
     faults = PtuFaults(latency_s=float(getattr(args, "latency", 0.0) or 0.0),
                        garbage=float(getattr(args, "garbage", 0.0) or 0.0))
     if faults.latency_s < 0.0 or not 0.0 <= faults.garbage <= 1.0:
@@ -312,6 +313,10 @@ def main(args: argparse.Namespace) -> int:
         print(f"ptu-sim: cannot open a pseudo-terminal or link: {exc}", file=sys.stderr)
         return 1
     print(sim.device + (f" (link {sim.link})" if sim.link is not None else ""), flush=True)
+    print(f"simulated PTU-D46 on {sim.port}: set it as the appliance's PTU port in the file "
+          f"given to --config,\n  [ptu]\n  port = \"{sim.port}\"\n"
+          "or talk to it with a terminal program (any baud rate). Ctrl-C (SIGINT) or SIGTERM "
+          "stops it.", flush=True)
     try:
         while not done.wait(0.5):
             pass

@@ -33,6 +33,7 @@ is the pure rule and the supervisor publishes it as :attr:`state` every
 from __future__ import annotations
 
 import copy
+import errno
 import logging
 import threading
 import time
@@ -53,7 +54,7 @@ from drivers.vehicle_signals import (
 )
 
 __all__ = ["VehicleCanReader", "VehicleCanStats", "VehicleSignalDecoder", "VehicleSignal",
-           "SignalKind", "VehicleCanConfigError", "FrameDecodeError", "open_bus"]
+           "SignalKind", "VehicleCanConfigError", "FrameDecodeError", "open_bus", "open_error"]
 
 log = logging.getLogger(__name__)
 
@@ -86,6 +87,23 @@ def open_bus(interface: str, channel: str, can_filters: list[dict[str, Any]] | N
              **kwargs: Any) -> can.BusABC:
     """``can.Bus`` with the given filters (the default bus factory of the CAN drivers)."""
     return can.Bus(interface=interface, channel=channel, can_filters=can_filters, **kwargs)
+
+
+def open_error(interface: str, channel: str, exc: BaseException) -> str:
+    """Why a bus did not open, with the likely cause of the SocketCAN errors users meet."""
+    text = f"cannot open {interface}:{channel}: {exc}"
+    if interface != "socketcan":
+        return text
+    code = next((e.errno for e in (exc, exc.__cause__, exc.__context__)
+                 if isinstance(e, OSError) and e.errno is not None), None)
+    hint = {
+        errno.EAFNOSUPPORT: "this kernel has no SocketCAN (sudo modprobe can can-raw; "
+                            "containers and WSL kernels often lack it)",
+        errno.ENODEV: f"no network interface {channel} (ip link show {channel}: is the adapter "
+                      f"plugged in? a virtual bus: sudo ip link add dev {channel} type vcan)",
+        errno.ENETDOWN: f"{channel} is down (sudo ip link set {channel} up, with its bitrate)",
+    }.get(code) if code is not None else None
+    return f"{text}: {hint}" if hint else text
 
 
 class _Listener(can.Listener):
@@ -265,8 +283,9 @@ class VehicleCanReader(Reporting[VehicleCanStats]):
         try:
             bus = self._factory(self.interface, self.channel, filters, **self._bus_kwargs)
         except (can.CanError, OSError, ValueError, ImportError) as exc:
-            self._counts.add("open_failures", error=f"open {self.interface}:{self.channel}: {exc}")
-            self._status.set(LinkState.LOST, f"cannot open: {exc}")
+            why = open_error(self.interface, self.channel, exc)
+            self._counts.add("open_failures", error=why)
+            self._status.set(LinkState.LOST, why)
             return None, None
         self._counts.add("opens")
         self._lost.clear()

@@ -18,6 +18,7 @@ import enum
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import cantools
 from cantools.database.can import Database, Message
@@ -194,3 +195,70 @@ class VehicleSignalDecoder:
                                        "(multiplexed out) or not numeric")
             out.append(VehicleSignal(t, spec.kind, spec.factor * float(raw)))
         return out
+
+
+class VehicleSignalEncoder:
+    """SI speed and yaw rate -> the frames that carry them: the inverse of a decoder.
+
+    Encodes through the same DBC and signal names as ``decoder`` (so any vehicle's DBC
+    works), with cantools. The other signals of those messages hold their DBC initial value
+    (0 where the DBC gives none, moved into the signal's range). Used to give footage
+    without a vehicle bus (a dashcam video) the CAN frames the appliance decodes. Pure.
+    """
+
+    def __init__(self, decoder: VehicleSignalDecoder) -> None:
+        db = decoder.database
+        self.messages: list[tuple[Message, list[SignalSpec]]] = []
+        for spec in decoder.specs:
+            message = db.get_message_by_name(spec.message)
+            for m, specs in self.messages:
+                if m is message:
+                    specs.append(spec)
+                    break
+            else:
+                self.messages.append((message, [spec]))
+
+    def check(self, kind: SignalKind, value: float) -> None:
+        """Raise ValueError, naming the signal, when ``value`` (SI) is outside its DBC range."""
+        for message, specs in self.messages:
+            for spec in specs:
+                if spec.kind is kind:
+                    _raw_in_range(message, spec, value)
+
+    def encode(self, speed_m_s: float, yaw_rate_rad_s: float
+               ) -> list[tuple[int, bool, bytes]]:
+        """(arbitration id, is extended, data) of every message carrying the two values."""
+        si = {SignalKind.SPEED: speed_m_s, SignalKind.YAW_RATE: yaw_rate_rad_s}
+        out = []
+        for message, specs in self.messages:
+            values: dict[str, float] = {s.name: _resting(s) for s in message.signals}
+            for spec in specs:
+                values[spec.signal] = _raw_in_range(message, spec, si[spec.kind])
+            try:
+                data = message.encode(values, scaling=True, strict=True)
+            except (CantoolsError, ValueError, KeyError) as exc:
+                raise ValueError(f"{message.name}: cannot encode {values}: {exc}") from None
+            out.append((message.frame_id, message.is_extended_frame, bytes(data)))
+        return out
+
+
+def _resting(signal: Any) -> float:
+    """A signal's value when nothing sets it: its initial value, else 0, within its range."""
+    v = float(signal.initial) if isinstance(signal.initial, (int, float)) else 0.0
+    if signal.minimum is not None and v < signal.minimum:
+        v = float(signal.minimum)
+    if signal.maximum is not None and v > signal.maximum:
+        v = float(signal.maximum)
+    return v
+
+
+def _raw_in_range(message: Message, spec: SignalSpec, value: float) -> float:
+    """``value`` (SI) in the signal's own unit and sign; ValueError when out of its range."""
+    sig = message.get_signal_by_name(spec.signal)
+    v = value / spec.factor
+    lo, hi = sig.minimum, sig.maximum
+    if not math.isfinite(v) or (lo is not None and v < lo) or (hi is not None and v > hi):
+        unit = f" {sig.unit}" if sig.unit else ""
+        raise ValueError(f"{spec.message}.{spec.signal}: {v:g}{unit} is outside the DBC's "
+                         f"range [{lo}, {hi}]")
+    return v

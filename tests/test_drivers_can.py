@@ -408,3 +408,29 @@ def test_reader_and_writer_on_socketcan(vehicle_db: Any, tmp_path: Path) -> None
         writer.publish(warning=HmiWarning(2, 9, 1.0, 12.0, 0.0))
         got = collect_hmi(car, codec, lambda g: any(i == 0x4C0 for i, _, _ in g))
         assert next(d for i, d, _ in got if i == 0x4C0).crc_ok
+
+
+def test_a_socketcan_interface_that_cannot_open_names_the_likely_cause() -> None:
+    import errno
+
+    from drivers.vehicle_can import open_error
+
+    cases = {
+        errno.EAFNOSUPPORT: "this kernel has no SocketCAN",
+        errno.ENODEV: "no network interface can7",
+        errno.ENETDOWN: "can7 is down",
+    }
+    for code, cause in cases.items():
+        text = open_error("socketcan", "can7", OSError(code, os.strerror(code)))
+        assert text.startswith(f"cannot open socketcan:can7: [Errno {code}]") and cause in text
+    # other errors and other interfaces: python-can's text alone
+    assert open_error("socketcan", "can7", OSError(errno.EPERM, "x")).endswith("] x")
+    assert open_error("virtual", "v", OSError(errno.ENODEV, "x")).endswith("] x")
+    # and what the reader reports on this machine for a channel that is not there: without
+    # SocketCAN in the kernel (errno 97) or without the interface (errno 19)
+    with VehicleCanReader(default_decoder(), interface="socketcan", channel="cw-no-such-can",
+                          reopen_min_s=0.05, reopen_max_s=0.1) as r:
+        assert r.wait_stats(lambda st: st.open_failures >= 1, WAIT)
+        assert r.state is LinkState.LOST
+        why = r.stats.last_error
+    assert "no SocketCAN" in why or "no network interface cw-no-such-can" in why, why

@@ -278,6 +278,9 @@ def test_ptu_sim_command_runs_until_sigterm(tmp_path: Path) -> None:
         line = proc.stdout.readline().strip()
         device = line.split()[0]
         assert device.startswith("/dev/pts/") and os.path.realpath(link) == device
+        # then what to do with it: the [ptu] port to configure (the stable link) and how to stop
+        usage = "".join(proc.stdout.readline() for _ in range(4))
+        assert f'[ptu]\n  port = "{link}"' in usage and "SIGTERM stops it" in usage, usage
         with serial.Serial(str(link), 115200, timeout=0.05) as port:
             info = handshake(PtuLink(port, timeout_s=1.0))
         assert info.resolution_arcsec == {"P": RESOLUTION_ARCSEC, "T": RESOLUTION_ARCSEC}

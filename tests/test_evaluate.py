@@ -67,6 +67,8 @@ def write_run(run: Path, tracks: list[dict[str, object]], warnings: list[dict[st
     with (run / "warnings.jsonl").open("w") as fh:
         for w in warnings:
             fh.write(json.dumps(w) + "\n")
+    # a finished run ends with its summary (what evaluate reads is only whether it is there)
+    (run / "summary.json").write_text(json.dumps({"frames_read": N, "frames_processed": N}))
     return run
 
 
@@ -197,6 +199,36 @@ def test_cli_prints_the_table(tmp_path: Path, default_config: Config,
     assert cli_main(["evaluate", str(rec), str(run)]) == 0
     out = capsys.readouterr().out
     assert "hand_made_collision" in out and "1.13" in out and "FAIL" in out
+    assert "evaluate --help" in out  # where the columns are explained
+
+
+def test_a_run_that_stopped_half_way_is_refused(tmp_path: Path, default_config: Config,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    rec = write_recording(tmp_path / "rec", default_config)
+    run = collision_run(tmp_path / "run")
+    (run / "summary.json").unlink()  # a replay killed half way writes no summary
+    lines = (run / "tracks.jsonl").read_text().splitlines()[:40]
+    (run / "tracks.jsonl").write_text("\n".join(lines) + "\n")
+    assert cli_main(["evaluate", str(rec), str(run)]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1, err
+    assert "incomplete run: no summary.json" in err and f"40 of {N} frames" in err
+    assert not (run / "evaluation.json").exists()
+
+
+def test_help_explains_every_column_of_the_table(capsys: pytest.CaptureFixture[str]) -> None:
+    from appliance.evaluate import TABLE_COLUMNS
+
+    with pytest.raises(SystemExit) as exc:
+        cli_main(["evaluate", "--help"])
+    assert exc.value.code == 0
+    help_text = capsys.readouterr().out
+    legend = help_text[help_text.index("columns of the table:"):]
+    entries = {line.split()[0] for line in legend.splitlines()[1:] if line[:3].strip()}
+    assert entries == {head for _, head, _ in TABLE_COLUMNS}
+    readme = (Path(__file__).parents[1] / "README.md").read_text()
+    for _, head, _ in TABLE_COLUMNS:
+        assert f"| `{head}` |" in readme, head
 
 
 def test_collision_object_from_truth_wins_over_geometry(default_config: Config) -> None:

@@ -158,3 +158,70 @@ def test_annotated_video(drive: Path, tmp_path: Path) -> None:
     while cap.read()[0]:
         n += 1
     assert n == 12
+
+
+def test_out_must_be_new_or_empty_unless_force(
+    drive: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from appliance.cli import main as cli_main
+
+    out = tmp_path / "run"
+    base = ["replay", str(drive), "--no-progress", "--out", str(out)]
+    assert cli_main(base) == 0
+    # what an earlier run left besides the outputs: its evaluation and annotated video
+    for name in ("evaluation.json", "timeline.png", "annotated.avi"):
+        (out / name).write_text("from the earlier run")
+    before = (out / "tracks.jsonl").read_bytes()
+    capsys.readouterr()
+    assert cli_main(base) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "not empty" in err and "--force" in err, err
+    assert (out / "tracks.jsonl").read_bytes() == before  # nothing touched
+    assert cli_main([*base, "--force"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        ["warnings.jsonl", "tracks.jsonl", "egomotion.csv", "can_out.log", "summary.json"]
+    )
+    # --force never removes what no run writes (here: --out pointed at a recording)
+    capsys.readouterr()
+    assert cli_main(["replay", str(drive), "--no-progress", "--out", str(drive), "--force"]) == 2
+    err = capsys.readouterr().err
+    assert "which no run writes" in err and len(err.strip().splitlines()) == 1, err
+    assert (drive / "meta.toml").is_file() and (drive / "frames.csv").is_file()
+    # a file, or a path under a file
+    (tmp_path / "afile").write_text("x")
+    for bad in (tmp_path / "afile", tmp_path / "afile" / "run"):
+        assert cli_main(["replay", str(drive), "--no-progress", "--out", str(bad)]) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and str(bad) in err, err
+        assert "Traceback" not in err and "internal error" not in err, err
+
+
+def test_replay_checks_its_config_as_run_does(
+    drive: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from appliance.cli import main as cli_main
+
+    broken = tmp_path / "broken.dbc"
+    broken.write_text("BO_ this is not a DBC\n")
+    cases = {
+        "malformed": (f'[vehicle_can]\ndbc = "{broken}"\n', "malformed DBC"),
+        "signal": ('[vehicle_can]\nspeed = "VEHICLE_SPEED.SPED"\n', "VEHICLE_SPEED.SPED"),
+    }
+    for name, (text, expected) in cases.items():
+        cfg = tmp_path / f"{name}.toml"
+        cfg.write_text(text)
+        out = tmp_path / f"o-{name}"
+        for command in (["replay", str(drive)], ["run"]):
+            assert cli_main([*command, "--out", str(out), "--config", str(cfg)]) == 2, command
+            err = capsys.readouterr().err
+            assert len(err.strip().splitlines()) == 1 and expected in err, (name, err)
+            assert not out.exists()  # refused before any output was written
+    # a valid configuration whose decoding the recording's [can] table replaces: one line says so
+    other = tmp_path / "other.toml"
+    other.write_text('[vehicle_can]\nspeed_unit = "m/s"\nchannel = "can1"\n')
+    assert cli_main(["replay", str(drive), "--no-progress", "--out", str(tmp_path / "o"),
+                     "--config", str(other)]) == 0
+    err = capsys.readouterr().err
+    notes = [line for line in err.splitlines() if "note:" in line]
+    assert len(notes) == 1 and "vehicle_can.speed_unit" in notes[0], err
+    assert "channel" not in notes[0] and "meta.toml [can]" in notes[0]

@@ -72,3 +72,23 @@ def test_watchdog_interval(monkeypatch: pytest.MonkeyPatch) -> None:
     assert watchdog_interval_s() == 2.5
     monkeypatch.setenv("WATCHDOG_PID", "1")
     assert watchdog_interval_s() is None
+
+
+def test_a_missing_device_is_reported_again_every_10_s() -> None:
+    from appliance.runtime.waiting import StillWaiting
+
+    w = StillWaiting()
+    lines = []
+    for k in range(251):  # 25 s missing, updates every 0.1 s
+        now = 100.0 + 0.1 * k
+        lines.append((now, w.update(now, "camera", True, "cannot open /dev/video0")))
+    said = [(t, line) for t, line in lines if line is not None]
+    assert [round(t - 100.0, 1) for t, _ in said] == [10.0, 20.0]
+    assert said[0][1] == "camera: still waiting after 10 s (cannot open /dev/video0); retrying"
+    # back, then missing again: counted afresh, other devices apart
+    assert w.update(126.0, "camera", False) is None
+    assert w.update(127.0, "camera", True, "x") is None
+    assert w.update(127.0, "PTU", True, "y") is None
+    assert w.update(136.9, "camera", True, "x") is None
+    assert w.update(137.0, "camera", True, "x") is not None
+    assert w.update(137.0, "PTU", True, "y") is not None

@@ -170,10 +170,15 @@ class RunOutputs:
             self._can.file.flush()
 
     def write_summary(self, summary: dict[str, Any]) -> Path:
+        """``summary.json``; ``can_frames_sent`` counts ``can_out.log`` when this object writes
+        it, else the caller gives it (the HMI writer's count)."""
+        own = {"can_frames_sent": self.can_frames} if self._can is not None else {}
+        if "can_frames_sent" not in {**own, **summary}:
+            raise ValueError("summary.json needs can_frames_sent from the HMI writer")
         body = {
             "version": __version__,
             "warnings_issued": self.warnings_issued,
-            "can_frames_sent": self.can_frames,
+            **own,
             **summary,
         }
         path = self.dir / "summary.json"

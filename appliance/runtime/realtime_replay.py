@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import itertools
 import os
+import tempfile
 import threading
 import time
 from collections.abc import Callable
@@ -132,6 +133,9 @@ def play_live(
     rate = cfg.runtime.replay_rate
     vehicle = hmi = ptu = sim = player_bus = None
     players: list[Any] = []
+    # the simulator's pty under a stable name, as the udev rule gives the real PTU: a re-plugged
+    # simulator gets a new pty, which the driver finds again by that name
+    link_dir = tempfile.TemporaryDirectory(prefix="cw-ptu-") if ptu_simulator else None
     try:
         vehicle = vehicle_reader(
             cfg,
@@ -146,8 +150,8 @@ def play_live(
                 f"{vehicle.stats.last_error}"
             )
         hmi = hmi_writer(cfg, out / "can_out.log", bus=buses.hmi).start()
-        if ptu_simulator:
-            sim = PtuSimulator().start()
+        if link_dir is not None:
+            sim = PtuSimulator(Path(link_dir.name) / "ptu").start()
             ptu = ptu_at_start(cfg, sim.port, sup.add_ptu, track)
         clock = PlaybackClock(t0_rec, time.monotonic() + START_LEAD_S, rate)
         if recorder is not None:
@@ -192,6 +196,10 @@ def play_live(
                 part.stop(timeout=0.5)
         for pl in players:
             pl.stop()
+        if sim is not None:
+            sim.stop()  # (a second stop does nothing)
+        if link_dir is not None:
+            link_dir.cleanup()
         if player_bus is not None:
             player_bus.shutdown()
     summary = run_summary(
@@ -203,16 +211,9 @@ def play_live(
 
 
 def replay_realtime(
-    rec: Recording, cfg: Config, out_dir: Path, video: str | None = None, buses: Buses | None = None
+    rec: Recording, cfg: Config, out_dir: Path, buses: Buses | None = None
 ) -> RunStats:
     """``replay --realtime``: private virtual buses unless the configuration names real ones."""
-    if video:
-        from appliance.errors import UsageError
-
-        raise UsageError(
-            "--video is only available without --realtime (replay the same recording "
-            "as fast as possible to draw it)"
-        )
     stats, summary = play_live(
         rec,
         cfg,

@@ -14,6 +14,7 @@ were recorded. Frames are stamped on the monotonic clock like a live camera's.
 from __future__ import annotations
 
 import logging
+import math
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -123,10 +124,15 @@ class RecordingSource(FrameSource):
             self.finished.set()
             self._cond.notify_all()
 
-    def interrupt(self, duration_s: float) -> None:
-        """Fault injection: deliver no frames for the next ``duration_s`` seconds."""
+    def interrupt(self, duration_s: float = math.inf) -> None:
+        """Fault injection: deliver no frames for the next ``duration_s`` seconds (until
+        :meth:`resume` by default)."""
         now = time.monotonic()
         self._outage = (now, now + duration_s)
+
+    def resume(self) -> None:
+        """End an outage of :meth:`interrupt` now."""
+        self._outage = None
 
     def read(self, timeout: float) -> CameraFrame | None:
         with self._cond:
@@ -217,10 +223,15 @@ class CanPlayer(_Player):
         self.send_errors = 0
         self._mute: tuple[float, float] | None = None
 
-    def mute(self, duration_s: float) -> None:
-        """Fault injection: the vehicle bus goes silent for the next ``duration_s`` seconds."""
+    def mute(self, duration_s: float = math.inf) -> None:
+        """Fault injection: the vehicle bus goes silent for the next ``duration_s`` seconds
+        (until :meth:`unmute` by default)."""
         now = time.monotonic()
         self._mute = (now, now + duration_s)
+
+    def unmute(self) -> None:
+        """End a silence of :meth:`mute` now."""
+        self._mute = None
 
     def _run(self) -> None:
         for msg in self._messages:

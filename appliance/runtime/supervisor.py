@@ -31,10 +31,11 @@ from appliance.runtime.health import Faults, Health, HealthStatus
 from appliance.runtime.outputs import RunOutputs, timing_stats
 from appliance.runtime.sd_notify import SdNotifier
 from appliance.runtime.sensor_sync import SensorSync
+from appliance.runtime.waiting import StillWaiting
 from appliance.runtime.wiring import hmi_status, hmi_warning
 from drivers.camera import CameraFrame, FrameSource
 from drivers.handoff import Handoff
-from drivers.hmi_can import HmiCanWriter
+from drivers.hmi_can import HmiCanStats, HmiCanWriter
 from drivers.link import LinkState
 from drivers.ptu import PtuSample
 from drivers.vehicle_signals import SignalKind, VehicleSignal
@@ -83,6 +84,7 @@ class RunStats:
     warnings: list[WarningEvent] = field(default_factory=list)
     first_frame_t: float | None = None
     last_frame_t: float | None = None
+    hmi: HmiCanStats | None = None  # what the HMI writer sent, once it has stopped
 
 
 class Supervisor:
@@ -116,6 +118,7 @@ class Supervisor:
         self._drops: deque[tuple[float, int]] = deque()
         self._warning_level = 0
         self._last_frame = -1
+        self._waiting = StillWaiting()
         self.failure: BaseException | None = None
 
     # ------------------------------------------------------------------ public
@@ -184,6 +187,8 @@ class Supervisor:
             if part is not None:
                 part.stop(timeout=0.5)
                 log.debug("stopped %s", type(part).__name__)
+        if inputs.hmi is not None:
+            self.stats.hmi = inputs.hmi.stats
         for player in inputs.players:  # after the drivers, so a simulator outlives its driver
             player.stop()
         self.outputs.flush()
@@ -303,7 +308,28 @@ class Supervisor:
             self.on_event(change)
         if inputs.hmi is not None:
             inputs.hmi.publish(status=hmi_status(self.health.status))
+        self._report_missing(inputs, now)
         return self.health.status
+
+    def _report_missing(self, inputs: LiveInputs, now: float) -> None:
+        """Every 10 s, one line per device still lost or silent (``runtime.waiting``)."""
+        if inputs.finished is not None and inputs.finished.is_set():
+            return
+        parts: list[tuple[str, Any, LinkState]] = [
+            ("camera", inputs.camera, inputs.camera.state)
+        ]
+        if inputs.vehicle is not None:
+            parts.append(("vehicle CAN", inputs.vehicle, inputs.vehicle.state_at(time.monotonic())))
+        if inputs.ptu is not None and inputs.ptu_enabled:
+            parts.append(("PTU", inputs.ptu, inputs.ptu.state))
+        if inputs.hmi is not None:
+            parts.append(("HMI CAN", inputs.hmi, inputs.hmi.state))
+        for name, part, state in parts:
+            missing = state in (LinkState.LOST, LinkState.STALE)
+            why = (part.stats.last_error or f"{state.value}: nothing received") if missing else ""
+            line = self._waiting.update(now, name, missing, why)
+            if line is not None:
+                self.on_event(line)
 
     def _clear_warnings(self, inputs: LiveInputs, t: float, state: PipelineState | None) -> None:
         """Camera lost: an active warning is cleared (a blind appliance must not keep warning)."""
@@ -355,6 +381,9 @@ def describe_warning(w: WarningEvent) -> str:
 def run_summary(
     stats: RunStats, cfg: Config, extra: dict[str, Any] | None = None
 ) -> dict[str, Any]:
+    """``summary.json`` of a live run: ``can_frames_sent`` is what the HMI writer put on the
+    bus (and logged in ``can_out.log``); ``hmi_can`` also counts the frames it could not send."""
+    hmi = stats.hmi or HmiCanStats()
     return {
         "frames_read": stats.frames_read,
         "frames_processed": stats.frames_processed,
@@ -362,5 +391,14 @@ def run_summary(
         "processing_ms": {k: timing_stats(v) for k, v in stats.stage_ms.items()},
         "status_changes": stats.status_changes,
         "config_digest": cfg.digest(),
+        "can_frames_sent": hmi.sent,
+        "hmi_can": {
+            "produced": hmi.produced,
+            "sent": hmi.sent,
+            "dropped_queue_full": hmi.dropped_queue_full,
+            "expired": hmi.expired,
+            "send_errors": hmi.send_errors,
+            "bus_lost": hmi.bus_lost,
+        },
         **(extra or {}),
     }

@@ -51,6 +51,13 @@ def hmi_codec(cfg: Config, channel: str | None = None) -> HmiCodec:
         raise ConfigError(h.dbc, "hmi_can.dbc", str(exc)) from None
 
 
+def check_config(cfg: Config) -> None:
+    """What the drivers refuse at start, checked before anything runs: the vehicle DBC and
+    its signal names, the HMI DBC (:class:`ConfigError`, exit 2)."""
+    vehicle_decoder(cfg)
+    hmi_codec(cfg)
+
+
 def vehicle_reader(
     cfg: Config,
     sink: Callable[[VehicleSignal], None],

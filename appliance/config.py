@@ -51,9 +51,6 @@ class CameraConfig:
     cx: float = _p()
     cy: float = _p()
     distortion: tuple[float, ...] = _p()
-    reopen_min_s: float = _p(0.0, lo_open=True)
-    reopen_max_s: float = _p(0.0, lo_open=True)
-    late_factor: float = _p(1.0)
     stale_s: float = _p(0.0, lo_open=True)
     timestamps: str = _p(choices=("auto", "retrieval"))
 
@@ -80,8 +77,6 @@ class VehicleCanConfig:
     yaw_rate_unit: str = _p(choices=("rad/s", "deg/s"))
     yaw_rate_sign: int = _p(choices=(1, -1))
     stale_s: float = _p(0.0, lo_open=True)
-    reopen_min_s: float = _p(0.0, lo_open=True)
-    reopen_max_s: float = _p(0.0, lo_open=True)
 
 
 @dataclass(frozen=True)
@@ -92,9 +87,6 @@ class HmiCanConfig:
     warning_id: int = _p(0, 0x7FF)
     status_id: int = _p(0, 0x7FF)
     period_s: float = _p(0.0, 10.0, lo_open=True)
-    tx_queue: int = _p(1, 100000)
-    reopen_min_s: float = _p(0.0, lo_open=True)
-    reopen_max_s: float = _p(0.0, lo_open=True)
 
 
 @dataclass(frozen=True)
@@ -108,11 +100,7 @@ class PtuConfig:
     tilt_offset_rad: float = _p(-1.6, 1.6)
     poll_hz: float = _p(0.0, 200.0, lo_open=True)
     timeout_s: float = _p(0.0, 10.0, lo_open=True)
-    retries: int = _p(0, 10)
-    fault_after: int = _p(1, 1000)
     speed_rad_s: float = _p(0.0, 10.0, lo_open=True)
-    reopen_min_s: float = _p(0.0, lo_open=True)
-    reopen_max_s: float = _p(0.0, lo_open=True)
 
 
 @dataclass(frozen=True)
@@ -246,9 +234,6 @@ class WarningConfig:
 
 @dataclass(frozen=True)
 class RuntimeConfig:
-    frame_buffer: int = _p(1, 1000)
-    can_buffer: int = _p(1, 1_000_000)
-    ptu_buffer: int = _p(1, 1_000_000)
     seed: int = _p(0)
     out_dir: str = _p()
     record: bool = _p()
@@ -458,11 +443,3 @@ def _check_cross(cfg: Config, origin: dict[str, str]) -> None:
         raise ConfigError(
             src("hmi_can", "status_id"), "hmi_can.status_id", "must differ from hmi_can.warning_id"
         )
-    for section in ("camera", "vehicle_can", "hmi_can", "ptu"):
-        sec = getattr(cfg, section)
-        if sec.reopen_max_s < sec.reopen_min_s:
-            raise ConfigError(
-                src(section, "reopen_max_s"),
-                f"{section}.reopen_max_s",
-                f"must be >= {section}.reopen_min_s",
-            )

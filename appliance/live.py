@@ -44,9 +44,6 @@ def build_inputs(
         height=c.height,
         fps=c.fps,
         pixel_format=c.pixel_format,
-        reopen_min_s=c.reopen_min_s,
-        reopen_max_s=c.reopen_max_s,
-        late_factor=c.late_factor,
         stale_s=c.stale_s,
         timestamps=c.timestamps,
     )

@@ -281,3 +281,23 @@ def test_every_track_says_why_it_warns_or_not(default_config: Config) -> None:
     # the warned track whose TTC rises past the threshold is held for hold_s: "warning, held"
     got = reasons(cfg, [(threat(1, 1.0),)] * 3 + [(threat(1, 5.0),)] * 2)
     assert got[-1] == {1: "warning, held"}
+
+
+def test_without_the_ego_motion_a_track_raises_at_most_a_caution(default_config: Config) -> None:
+    """Vehicle CAN lost (``ego_known`` False): the threat comes from the image's growth and
+    bearing alone; it may caution, never warn; its speed over ground (meaningless then) neither
+    blocks it as "not moving" nor excuses a low probability; a warning issued before is held
+    by the hold rules, not by hysteresis, and its reason says the ego motion is unknown."""
+    from dataclasses import replace
+
+    cfg = default_config.warning
+    blind = replace(threat(1, 1.0), ego_known=False, moving=False)
+    levels, events = run(cfg, [(blind,)] * 10)
+    assert [e.level for e in events] == [1] and levels[-1] == 1
+    assert reasons(cfg, [(blind,)] * 5)[-1] == {1: "caution, ego motion unknown"}
+    weak = replace(blind, report=replace(blind.report, probability=0.5), speed_m_s=9.0)
+    assert run(cfg, [(weak,)] * 10)[1] == []
+    # a level 2 issued with the ego motion known is held for hold_s, then drops to a caution
+    levels, events = run(cfg, [(threat(1, 1.0),)] * 4 + [(blind,)] * 40)
+    assert [e.level for e in events] == [2, 1]
+    assert events[1].t - events[0].t == pytest.approx(cfg.hold_s, abs=1.5 / FPS)

@@ -92,3 +92,15 @@ def test_a_missing_device_is_reported_again_every_10_s() -> None:
     assert w.update(136.9, "camera", True, "x") is None
     assert w.update(137.0, "camera", True, "x") is not None
     assert w.update(137.0, "PTU", True, "y") is not None
+
+
+def test_a_status_change_says_what_can_still_be_warned_of() -> None:
+    from appliance.runtime.health import Faults, Health
+
+    h = Health()
+    assert h.update(True, Faults(), 30.0, 5.0) == "status ok (faults: none)"
+    line = h.update(True, Faults(vehicle_can_stale=True), 30.0, 5.0)
+    assert line is not None and line.startswith("status degraded (faults: vehicle_can_stale)")
+    assert "cautions only" in line
+    line = h.update(True, Faults(camera=True), 0.0, 5.0)
+    assert line is not None and "no warnings" in line

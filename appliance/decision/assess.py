@@ -2,6 +2,12 @@
 whether its predicted path meets the ego corridor (``threat.py`` has the geometry and how
 the ground and scale cues combine). Facts only: whether they suffice to warn is decided in
 one place, ``warnings.indication``.
+
+Without the ego motion (vehicle CAN stale or absent, PTU lost: ``FrameContext.ego_known``) a
+path over ground means nothing: the 3-D state was predicted with a speed that is not the car's.
+The threat is then judged as a monocular system without odometry would judge it, from what
+needs no ego speed: the growth of the track's image (its time to contact) and its bearing
+(constant: a collision course), and ``warnings`` caps it at a caution.
 """
 
 from __future__ import annotations
@@ -59,6 +65,7 @@ class TrackThreat:
     height_m: float | None = None
     coasted: bool = False
     evidence: float | None = None
+    ego_known: bool = True
 
     @property
     def ttc(self) -> float | None:
@@ -85,7 +92,8 @@ def assess(track: ImageTrack, cues: TrackCues, f: FrameContext, cfg: WarningConf
     on_course = on_wide = False
     depth: float | None = None
     g = cues.ground
-    if g is not None:
+    ego_known = f.ego_known
+    if g is not None and ego_known:
         pos = g.position
         # a velocity is as significant as it was when last measured: coasting (no contact
         # this frame, or hidden) adds uncertainty, not evidence that the object stopped
@@ -106,10 +114,17 @@ def assess(track: ImageTrack, cues: TrackCues, f: FrameContext, cfg: WarningConf
         ttc_g = base.ttc if base.ttc is not None else wide.ttc
         if ttc_g is not None:
             ground_est = (ttc_g, ground_ttc_std(pos, g.P, ttc_g, speed, vel))
+    if g is not None and not ego_known:
+        # the contact's geometry needs no ego speed: its distance and depth still hold
+        depth = float(g.position[0] - mount.x_m)
+        rng = float(np.hypot(g.position[0] - mount.x_m, g.position[1] - mount.y_m))
+        distance = near_side_gap(g.position, object_radius(track.size[0], rng, camera.fx), mount,
+                                 f.sensors.pan_rad)
+        cue_depth = depth
     scale_est = bumper_ttc(scale, depth if depth is not None else cue_depth, mount) \
         if scale is not None else None
     ttc: float | None = None
-    if g is not None:
+    if g is not None and ego_known:
         if ground_est is not None:
             # the scale cue only where the ground contact is unreliable (coasting)
             fresh = ground_state is not None and ground_state.fresh and not coasted
@@ -145,5 +160,5 @@ def assess(track: ImageTrack, cues: TrackCues, f: FrameContext, cfg: WarningConf
     if depth is not None and depth > 0.0:
         height = peaks.height_peak_m if peaks is not None else 0.0
     return TrackThreat(report=report, on_course=on_course, on_course_wide=on_wide, miss_m=miss,
-                       moving=moving, speed_m_s=None if g is None else g.speed, height_m=height,
-                       coasted=coasted)
+                       moving=moving, speed_m_s=None if g is None or not ego_known else g.speed,
+                       height_m=height, coasted=coasted, ego_known=ego_known)

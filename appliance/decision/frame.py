@@ -64,6 +64,13 @@ class FrameContext:
         return finite(self.sensors.yaw_rate_rad_s)
 
     @property
+    def ego_known(self) -> bool:
+        """Whether the ego motion is known: vehicle CAN (speed, yaw rate) and the PTU fresh.
+        Without it, a path over ground means nothing: see ``assess`` and ``warnings``."""
+        return bool(self.sensors.can_valid and self.sensors.ptu_valid
+                    and math.isfinite(self.sensors.speed_m_s))
+
+    @property
     def halo_px(self) -> float:
         """Half the LK window: how far beside an object its particles still follow it."""
         return 0.5 * self.window_px

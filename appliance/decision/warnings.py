@@ -17,6 +17,10 @@ predicted path meets the ego corridor and with what TTC. From that:
   needs no ``min_probability``: a lead car at the epipole shows little independent flow.
   A hidden track, assessed from its coasted 3-D state, needs ``HIDDEN_MIN_PROBABILITY``
   (its highest while seen) and raises at most ``hidden.max_level``.
+* **Without the ego motion** (vehicle CAN stale or absent, PTU lost) the 3-D states' velocities
+  over ground mean nothing: a track is judged from its image's growth and its bearing alone
+  (``assess``), needs its probability whatever its speed, and raises at most a caution; a
+  warning already issued is held by the hold rules below, not by hysteresis.
 * **Minimum persistence.** A track raises a level only after indicating it in
   ``min_persistence_frames`` consecutive frames: no single-frame warnings. The
   indication looks ahead by the window's length (threshold + (frames - 1) * frame
@@ -88,13 +92,13 @@ def indication(th: TrackThreat, threshold: float, cfg: WarningConfig) -> str | N
     stands up from the road, its evidence of independent motion is strong enough (or it is a
     fast mover), its path meets the corridor, and its time to collision is within the
     threshold."""
-    if not th.moving:
+    if th.ego_known and not th.moving:
         return "not moving over ground"
     if th.height_m is not None and th.height_m < cfg.min_height_m:
         return f"box {th.height_m:.2f} m tall, below {cfg.min_height_m:.2f} m"
     p = th.report.probability if th.evidence is None else th.evidence
     p_min = HIDDEN_MIN_PROBABILITY if th.coasted else cfg.min_probability
-    fast = th.speed_m_s is not None and th.speed_m_s >= FAST_MOVER_M_S
+    fast = th.ego_known and th.speed_m_s is not None and th.speed_m_s >= FAST_MOVER_M_S
     if p < p_min and not fast:
         return f"probability {p:.2f} below {p_min:.2f}"
     if not th.on_course:
@@ -141,6 +145,8 @@ def warning_step(state: WarningState, threats: tuple[TrackThreat, ...], t: float
         why1 = indication(th, thresholds[1] + lookahead, cfg)
         s1 = old[0] + 1 if why1 is None else 0
         s2 = old[1] + 1 if indication(th, thresholds[2] + lookahead, cfg) is None else 0
+        if not th.ego_known:   # no level 2 from an ego motion it does not know
+            s2 = 0
         if th.coasted and hidden_max_level < 2:   # an issued level is held
             s2 = 0
             if hidden_max_level < 1:
@@ -149,7 +155,7 @@ def warning_step(state: WarningState, threats: tuple[TrackThreat, ...], t: float
         streaks[tid] = (s1, s2)
         level = 0
         for k, streak in ((2, s2), (1, s1)):
-            holding = (state.track == tid and state.level >= k
+            holding = (state.track == tid and state.level >= k and (k < 2 or th.ego_known)
                        and holds(th, thresholds[k], cfg.hysteresis_s))
             if streak >= cfg.min_persistence_frames or holding:
                 level = k
@@ -225,7 +231,8 @@ def warning_step(state: WarningState, threats: tuple[TrackThreat, ...], t: float
             why = f"{LEVEL_NAMES[levels[tid]]}, track {new_track} warned"
         else:
             why = blocked[tid]
-        reasons[tid] = why + (", hidden" if th.coasted else "")
+        reasons[tid] = why + (", hidden" if th.coasted else "") \
+            + ("" if th.ego_known else ", ego motion unknown")
     return new_state, events, report if level > 0 else None, reasons
 
 

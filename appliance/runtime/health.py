@@ -2,7 +2,8 @@
 
 State (spec): 0 starting, 1 ok, 2 degraded, 3 fault. Camera lost -> fault (and the
 warnings are cleared); vehicle CAN stale, PTU lost or processing overrun -> degraded.
-Each change is reported once by :meth:`Health.update`, not every frame.
+Each change is reported once by :meth:`Health.update`, not every frame, with what the
+appliance can still warn of (:func:`capability`).
 """
 
 from __future__ import annotations
@@ -45,6 +46,15 @@ class HealthStatus:
         )
 
 
+def capability(faults: Faults) -> str:
+    """What the appliance can still warn of with these faults (the decision stage's rules)."""
+    if faults.camera:
+        return "no warnings: no frames"
+    if faults.vehicle_can_stale or faults.ptu:
+        return "cautions only, from the image's growth and bearing: ego motion unknown"
+    return "full"
+
+
 def state_of(started: bool, faults: Faults) -> int:
     if faults.camera:
         return FAULT
@@ -71,5 +81,7 @@ class Health:
         self.status = new
         if changed:
             self.changes += 1
-            return f"status {new.state_name} (faults: {', '.join(faults.names()) or 'none'})"
+            line = f"status {new.state_name} (faults: {', '.join(faults.names()) or 'none'})"
+            can = capability(faults)
+            return line if can == "full" else f"{line}; warnings: {can}"
         return None

@@ -34,7 +34,7 @@ from appliance.runtime.sources import (
     PtuPlayer,
     RecordingSource,
 )
-from appliance.runtime.supervisor import LiveInputs, RunStats, Supervisor, run_summary
+from appliance.runtime.supervisor import FRAME_RING, LiveInputs, RunStats, Supervisor, run_summary
 from appliance.runtime.wiring import hmi_writer, ptu_driver, vehicle_reader
 from drivers.ptu import PtuDriver, PtuSample
 from drivers.ptu_sim import PtuSimulator
@@ -169,7 +169,7 @@ def play_live(
         if sim is not None:
             players.append(sim)
         camera = RecordingSource(
-            rec, clock, capacity=cfg.runtime.frame_buffer, stale_s=cfg.camera.stale_s / rate
+            rec, clock, capacity=FRAME_RING, stale_s=cfg.camera.stale_s / rate
         )
         inputs = LiveInputs(
             camera=camera,

@@ -12,6 +12,8 @@ says for a recording without ``ptu.csv``.
 
 from __future__ import annotations
 
+import math
+
 import bisect
 from dataclasses import dataclass
 
@@ -91,8 +93,9 @@ class SensorSync:
         self.yaw_rate = SignalHistory()
         self.pan = SignalHistory()
         self.tilt = SignalHistory()
-        self._last_speed = 0.0
-        self._last_yaw = 0.0
+        # unknown until the first CAN sample (NaN, can_valid False): not a car standing still
+        self._last_speed = math.nan
+        self._last_yaw = math.nan
         self._last_pan = 0.0
         self._last_tilt = 0.0
 

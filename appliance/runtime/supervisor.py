@@ -42,6 +42,11 @@ from drivers.vehicle_signals import SignalKind, VehicleSignal
 
 log = logging.getLogger(__name__)
 
+# ring buffer capacities: frames (the newest are kept), vehicle CAN samples, PTU samples
+FRAME_RING = 4
+CAN_RING = 1024
+PTU_RING = 256
+
 
 class Stoppable(Protocol):
     def stop(self) -> None: ...
@@ -106,9 +111,9 @@ class Supervisor:
         self.on_event = on_event or (lambda line: log.info("%s", line))
         self.recorder = recorder
         self.clock = clock
-        self.frame_ring: Handoff[CameraFrame] = Handoff(cfg.runtime.frame_buffer)
-        self.can_ring: Handoff[VehicleSignal] = Handoff(cfg.runtime.can_buffer)
-        self.ptu_ring: Handoff[PtuSample] = Handoff(cfg.runtime.ptu_buffer)
+        self.frame_ring: Handoff[CameraFrame] = Handoff(FRAME_RING)
+        self.can_ring: Handoff[VehicleSignal] = Handoff(CAN_RING)
+        self.ptu_ring: Handoff[PtuSample] = Handoff(PTU_RING)
         self._out_ring: Handoff[StepOutput | WarningEvent] = Handoff(4096)
         self.health = Health()
         self.stats = RunStats()

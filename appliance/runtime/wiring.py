@@ -75,8 +75,6 @@ def vehicle_reader(
         interface=interface,
         channel=channel,
         stale_s=v.stale_s * stale_scale,
-        reopen_min_s=v.reopen_min_s,
-        reopen_max_s=v.reopen_max_s,
         sink=sink,
         raw_sink=raw_sink,
     )
@@ -94,11 +92,7 @@ def ptu_driver(cfg: Config, port: str, sink: Callable[[PtuSample], None]) -> Ptu
         tilt_offset_rad=p.tilt_offset_rad,
         poll_hz=p.poll_hz,
         timeout_s=p.timeout_s,
-        retries=p.retries,
         speed_rad_s=p.speed_rad_s,
-        reopen_min_s=p.reopen_min_s,
-        reopen_max_s=p.reopen_max_s,
-        fault_after=p.fault_after,
         sink=sink,
     )
 
@@ -112,10 +106,7 @@ def hmi_writer(cfg: Config, log_path: Path, *, bus: tuple[str, str] | None = Non
         interface=interface,
         channel=channel,
         period_s=h.period_s,
-        tx_queue=h.tx_queue,
         log_path=log_path,
-        reopen_min_s=h.reopen_min_s,
-        reopen_max_s=h.reopen_max_s,
     )
 
 

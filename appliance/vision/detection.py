@@ -15,7 +15,7 @@ otherwise sample from, the same uniform "object appears anywhere" prior, so its
 correction ``u / g`` is 1 and an importance sample is weighed like any other particle.
 
 *Births* (beyond the paper, :data:`BIRTH_FRACTION`): the static-scene pool of section 3
-measures flow at ~300 corners every frame. Weighed with the same likelihood, those
+measures flow at ``refinement.static_points`` corners every frame. Weighed with the same likelihood, those
 correspondences are measurements of independent motion too, and a corner on a small
 far mover is found far sooner than g's uniform samples find it (a 6 x 23 px pedestrian
 gets one of 100 uniform samples every ~20 frames). Some of the importance samples are

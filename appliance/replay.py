@@ -7,6 +7,9 @@ configuration give identical warnings, tracks, ego-motion and CAN output.
 ``--realtime`` instead plays the recording through the drivers' sources, ring
 buffers and threads, exactly as live (``runtime.supervisor``).
 
+A gap between frames longer than ``camera.stale_s`` is a camera outage, as live: the status
+says so, a warning then active is cleared, and the pipeline starts afresh.
+
 ``--config FILE`` is checked as ``run`` checks it (its DBCs and signal names too), even
 where the recording's ``[can]`` table takes the place of its ``[vehicle_can]`` decoding;
 one line says when it does. ``--out`` must be new or empty, or hold an earlier run's files
@@ -28,7 +31,7 @@ import can
 
 from appliance.config import Config, load_config, read_toml
 from appliance.errors import UsageError
-from appliance.messages import Frame, StepOutput
+from appliance.messages import Frame, StepOutput, WarningEvent
 from appliance.pipeline import camera_from_config, init_state, step
 from appliance.recording import Recording, apply_meta
 from appliance.runtime.health import Faults, Health
@@ -112,9 +115,23 @@ def replay(
             total=rec.n_frames, unit="frame", file=sys.stderr, desc=rec.path.name, leave=False
         )
     t_start = time.perf_counter()
+    last: tuple[float, int, int] | None = None   # the previous frame's time, index, warning level
     with RunOutputs(out_dir) as outputs:
         for frame in rec.frames():
             result.frames_read += 1
+            if last is not None and frame.t - last[0] > cfg.camera.stale_s:
+                # no frame for longer than the camera's stale time: the camera was lost, as live
+                # (runtime.supervisor): its warning is cleared and the pipeline starts afresh
+                lost_t = last[0] + cfg.camera.stale_s
+                change = health.update(True, Faults(camera=True), fps, 0.0)
+                if change is not None:
+                    result.status_changes.append(f"{lost_t:.3f} {change}")
+                if last[2] > 0:
+                    outputs.write_warnings([WarningEvent(t=lost_t, frame=last[1], level=0,
+                                                         track=None, bbox=None, ttc_s=None,
+                                                         distance_m=None, bearing_rad=None)])
+                outputs.write_can(hmi.update(lost_t, hmi_warning(0, None), hmi_status(health.status)))
+                state = init_state(cfg, camera)
             horizon = frame.t + SENSOR_LOOKAHEAD_S
             while can_it.head is not None and can_it.head.timestamp <= horizon:
                 _feed_can(can_it.pop(), decoder, sync, result)
@@ -126,6 +143,7 @@ def replay(
             sensors = sync.sample(frame.t)
             state, out, decision = step(state, frame, sensors, cfg, camera)
             outputs.write_step(out)
+            last = (frame.t, frame.index, decision.warning_level)
             # ApplianceStatus as live, except latency: an as-fast-as-possible replay has no
             # capture-to-output latency, so it reports 0 (summary.json has the timings)
             faults = Faults(vehicle_can_stale=not sensors.can_valid, ptu=not sensors.ptu_valid)

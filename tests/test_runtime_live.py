@@ -60,7 +60,7 @@ class StatusLog:
         status = [line for line in self.lines if line.startswith("status ")]
         if not status or status[-1].startswith("status starting"):
             return None
-        named = status[-1].partition("(faults: ")[2].rstrip(")")
+        named = status[-1].partition("(faults: ")[2].partition(")")[0]
         return set() if named == "none" else set(named.split(", "))
 
     def wait(self, holds: Callable[[set[str]], bool], timeout: float = 30.0) -> bool:

@@ -27,7 +27,7 @@ predicted path meets the ego corridor and with what TTC. From that:
   interval), so a steadily falling TTC is issued when it reaches the threshold.
 * **Hysteresis.** Once a track holds a level it keeps it while TTC <= threshold +
   ``hysteresis_s`` and the path meets the corridor widened by
-  ``corridor_hysteresis_m``: a TTC oscillating around a threshold does not flicker.
+  ``assess.CORRIDOR_HYSTERESIS_M``: a TTC oscillating around a threshold does not flicker.
 * **Hold.** An issued level is not lowered within ``hold_s`` of being issued. If
   the warned track is lost, or its TTC becomes unknown (it left the image, went
   under the bonnet, lost its ground contact just before contact), the level is

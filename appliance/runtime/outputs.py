@@ -19,6 +19,7 @@ import can
 import numpy as np
 
 from appliance import __version__
+from appliance.code_digest import code_digest
 from appliance.messages import EgoMotion, StepOutput, TrackReport, WarningEvent
 
 EGOMOTION_HEADER = [
@@ -169,6 +170,7 @@ class RunOutputs:
     def write_summary(self, summary: dict[str, Any]) -> Path:
         body = {
             "version": __version__,
+            "code_digest": code_digest(),
             "warnings_issued": self.warnings_issued,
             "can_frames_sent": self.can_frames,
             **summary,

@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from appliance.batch import engine
+from appliance.batch import engine, report
 from appliance.batch.task import Job, JobResult
 from appliance.code_digest import code_digest
 from appliance.config import load_config
@@ -147,6 +147,14 @@ def replay_all(worlds: list[World], config: str | None, jobs: int) -> dict[str, 
             engine.disconnect()
     bar.close()
     print(f"replayed in {time.perf_counter() - t0:.0f} s", flush=True)
+    for w in worlds:
+        c = report.costs([r for r in results if Path(r.out_dir).parent == w.run_dir])
+        if c["recordings_replayed"]:
+            peak = max(c["peak_rss_mb_per_worker"].values(), default=0.0)
+            read = c["read_bytes_total"] or 0
+            print(f"  {w.name}: {c['recordings_replayed']} replayed, CPU {c['cpu_ms_per_frame']}"
+                  f" ms/frame (replay and evaluation), {read / max(c['frames_replayed'], 1) / 1e3:.0f}"
+                  f" kB read/frame, worker peak RSS {peak:.0f} MB")
     return {r.out_dir: r for r in results}
 
 

@@ -89,7 +89,7 @@ def main(args: argparse.Namespace) -> int:
     cluster = engine.Cluster(address=args.address, workers=workers)
     out = Path(args.out)
     jobs = plan(expand(args.recordings) if local else args.recordings, out, args.evaluate, local)
-    engine._ray()  # a missing Ray is reported before anything is written
+    engine.require_ray()  # a missing Ray is reported before anything is written
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

@@ -61,7 +61,7 @@ class RayInfo:
 OnResult = Callable[[JobResult], None]
 
 
-def _ray() -> Any:
+def require_ray() -> Any:
     try:
         import ray
     except ImportError:
@@ -77,7 +77,7 @@ def _ray_task(job: Job, cfg: Config) -> JobResult:
     return run_job(job, cfg)
 
 
-def _warm() -> int:
+def warm() -> int:
     """A task that only loads the appliance into a worker (done when this module is loaded)."""
     return os.getpid()
 
@@ -89,7 +89,7 @@ def connect(cluster: Cluster) -> RayInfo:
     is the time until the first recording can start, and the first task on a worker costs
     what the others do.
     """
-    ray = _ray()
+    ray = require_ray()
     t0 = time.perf_counter()
     try:
         if cluster.address is None:
@@ -102,8 +102,8 @@ def connect(cluster: Cluster) -> RayInfo:
         where = cluster.address or "a local Ray"
         raise RuntimeFailure(f"cannot start or join {where}: {str(exc).splitlines()[0]}") from None
     if cluster.address is None:
-        warm = ray.remote(num_cpus=1)(_warm)
-        ray.get([warm.remote() for _ in range(cluster.workers or 1)])
+        load = ray.remote(num_cpus=1)(warm)
+        ray.get([load.remote() for _ in range(cluster.workers or 1)])
     resources = ray.cluster_resources()
     return RayInfo(version=ray.__version__, address=cluster.address or "local",
                    cpus=float(resources.get("CPU", 0.0)),
@@ -112,7 +112,7 @@ def connect(cluster: Cluster) -> RayInfo:
 
 
 def disconnect() -> None:
-    ray = _ray()
+    ray = require_ray()
     if ray.is_initialized():
         ray.shutdown()
 
@@ -129,12 +129,17 @@ def run_on_ray(jobs: Sequence[Job], cfg: Config, cluster: Cluster,
     """Every job as one Ray task on the connected Ray; results in the order of ``jobs``.
 
     ``on_result`` sees each result as it arrives (the progress bar). On a cluster with
-    ``workers`` given, no more than that many tasks are in flight at once.
+    ``workers`` given, no more than that many tasks are in flight at once; otherwise two per
+    CPU (one running, one queued behind it), so that the driver's bookkeeping stays small
+    however many recordings there are.
     """
-    ray = _ray()
+    ray = require_ray()
     remote = ray.remote(num_cpus=1, max_retries=TASK_RETRIES)(_ray_task)
     cfg_ref = ray.put(cfg)
-    cap = len(jobs) if cluster.address is None or cluster.workers is None else cluster.workers
+    if cluster.address is not None and cluster.workers is not None:
+        cap = cluster.workers
+    else:
+        cap = 2 * max(1, int(ray.cluster_resources().get("CPU", 1)))
     results: list[JobResult | None] = [None] * len(jobs)
     pending: dict[Any, tuple[int, float]] = {}
     queue = list(range(len(jobs)))

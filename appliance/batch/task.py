@@ -93,7 +93,7 @@ def _cpu_s() -> float:
     return ru.ru_utime + ru.ru_stime
 
 
-def _peak_rss_mb() -> float:
+def peak_rss_mb() -> float:
     """The process's peak resident memory so far, MB (Linux reports ru_maxrss in KiB)."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
@@ -165,7 +165,7 @@ def run_job(job: Job, cfg: Config) -> JobResult:
         frames=frames,
         replay_s=None if replay_s is None else round(replay_s, 3),
         cpu_s=round(_cpu_s() - cpu0, 3) if summary is None else None,
-        peak_rss_mb=round(_peak_rss_mb(), 1),
+        peak_rss_mb=round(peak_rss_mb(), 1),
         read_bytes=read1 - read0 if summary is None and read0 is not None and read1 is not None
         else None,
         recording_bytes=_recording_bytes(rec.path),
@@ -176,4 +176,4 @@ def run_job(job: Job, cfg: Config) -> JobResult:
 
 def _failed(base: JobResult, error: str) -> JobResult:
     return replace(base, status="failed", error=error.splitlines()[0] if error else "failed",
-                   peak_rss_mb=round(_peak_rss_mb(), 1), finished=time.time())
+                   peak_rss_mb=round(peak_rss_mb(), 1), finished=time.time())

@@ -52,17 +52,19 @@ def plan(recordings: Sequence[str], out: Path, evaluate: bool, local: bool) -> l
     """
     if not recordings:
         raise UsageError("no recordings given")
+    out = out.absolute()
     seen: dict[str, str] = {}
     jobs = []
     for rec in recordings:
         if local and not Path(rec).is_dir():
             raise UsageError(f"{rec}: not a recording directory (not found or not a directory)")
-        name = Path(rec).resolve().name if local else Path(rec).name
-        if name in seen:
-            raise UsageError(f"{rec}: same name as {seen[name]}; both would write {out / name}")
-        seen[name] = rec
-        jobs.append(Job(recording=str(Path(rec).resolve()) if local else rec,
-                        out_dir=str(out / name), evaluate=evaluate))
+        # absolute as this machine sees it: workers elsewhere need the same path
+        path = Path(rec).resolve() if local else Path(rec).absolute()
+        if path.name in seen:
+            raise UsageError(f"{rec}: same name as {seen[path.name]}; both would write "
+                             f"{out / path.name}")
+        seen[path.name] = rec
+        jobs.append(Job(recording=str(path), out_dir=str(out / path.name), evaluate=evaluate))
     return jobs
 
 

@@ -182,13 +182,16 @@ def main(argv: list[str]) -> int:
                 key = f"pid {r.pid}"
                 worker_peak[key] = max(worker_peak.get(key, 0.0), r.peak_rss_mb or 0.0)
         print(f"load average after: {os.getloadavg()[0]:.1f}")
-        _report(args, recs, seconds, sizes, seq_walls, ray_walls, ratios, startups, overheads,
-                empties, worker_peak, diffs, ray_results)
+        last = Path(tmp) / f"round{args.rounds - 1}-ray"
+        written = {r.name: sum(p.stat().st_size for p in (last / r.name).iterdir())
+                   for r in recs}
+        _report(args, recs, seconds, sizes, written, seq_walls, ray_walls, ratios, startups,
+                overheads, empties, worker_peak, diffs, ray_results)
     return 0 if not diffs else 1
 
 
 def _report(args: argparse.Namespace, recs: Sequence[Path], seconds: dict[str, float],
-            sizes: dict[str, int], seq_walls: list[float], ray_walls: list[float],
+            sizes: dict[str, int], written: dict[str, int], seq_walls: list[float], ray_walls: list[float],
             ratios: list[float], startups: list[float], overheads: list[float],
             empties: list[float], worker_peak: dict[str, float], diffs: list[str],
             ray_results: list[JobResult]) -> None:
@@ -216,4 +219,6 @@ def _report(args: argparse.Namespace, recs: Sequence[Path], seconds: dict[str, f
     print(f"\nper recording (last round's batch, medians): CPU {med(cpu):.1f} s, "
           f"{med(per_drive):.2f} CPU s per s of drive; task wall {med(wall):.2f} s per s of "
           f"drive; bytes read {med(read) / 1e6:.2f} MB per s of drive (recording on disk "
-          f"{med(size) / 1e6:.2f} MB/s)")
+          f"{med(size) / 1e6:.2f} MB/s); outputs written "
+          f"{med([written[r.name] / seconds[r.name] for r in ray_results]) / 1e3:.1f} kB per s "
+          f"of drive; peak RSS {max(r.peak_rss_mb or 0.0 for r in ray_results):.0f} MB")

@@ -79,7 +79,7 @@ def find_python(given: str | None) -> tuple[str, str]:
             raise WorldError(f"--ks-python {given}: cannot import {', '.join(MODULES)}")
         return given, "given with --ks-python"
     if _runs(sys.executable):
-        return sys.executable, "this interpreter (it has the world's packages)"
+        return sys.executable, "this interpreter, which has the world's packages"
     venv = cache_dir() / "ks-venv"
     python = str(venv / "bin" / "python")
     how = f"the venv {venv}"

@@ -154,6 +154,7 @@ def main(argv: list[str]) -> int:
               f"load average {os.getloadavg()[0]:.1f}; OpenCV threads {cv2.getNumThreads()} "
               f"sequential, 1 per Ray worker", flush=True)
         seq_walls, ray_walls, ratios, overheads, empties, startups = [], [], [], [], [], []
+        shares: list[tuple[float, float]] = []
         worker_peak: dict[str, float] = {}
         diffs: list[str] = []
         ray_results: list[JobResult] = []
@@ -177,6 +178,9 @@ def main(argv: list[str]) -> int:
             seq_walls.append(walls["seq"])
             ray_walls.append(walls["ray"])
             ratios.append(walls["seq"] / walls["ray"])
+            # how much of the machine each got: CPU seconds of the replays per wall second
+            shares.append((sum(r.cpu_s or 0.0 for r in seq_results) / walls["seq"],
+                           sum(r.cpu_s or 0.0 for r in ray_results) / walls["ray"]))
             overheads += overhead_per_task(ray_results)
             for r in ray_results:
                 key = f"pid {r.pid}"
@@ -187,6 +191,9 @@ def main(argv: list[str]) -> int:
                    for r in recs}
         _report(args, recs, seconds, sizes, written, seq_walls, ray_walls, ratios, startups,
                 overheads, empties, worker_peak, diffs, ray_results)
+        print("CPUs the replays got (their CPU s per wall s), one after another / batch: "
+              + ", ".join(f"{a:.2f} / {b:.2f}" for a, b in shares)
+              + f" (of {os.cpu_count()}; the rest went to other processes)")
     return 0 if not diffs else 1
 
 

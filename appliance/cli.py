@@ -91,8 +91,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--workers",
         type=int,
         metavar="N",
-        help="local Ray CPUs (default: all of this machine's); on a cluster, "
-        "recordings in flight at once (default: as many as it has CPUs)",
+        help="local Ray CPUs (default: all of this machine's); on a cluster, at most N "
+        "recordings at once (default: one per CPU of the cluster)",
     )
 
     sim = sub.add_parser("simulate", help="write a synthetic drive recording with truth.json")

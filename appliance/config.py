@@ -183,8 +183,6 @@ class ProbabilityMapConfig:
     gauss_window_px: int = _p(1, 255)
     temporal_alpha: float = _p(0.0, 1.0, lo_open=True)
     scale: int = _p(1, 16)
-    evidence_particles: float = _p(0.0, 1000.0)
-    rotation_compensation: bool = _p()
 
 
 @dataclass(frozen=True)
@@ -192,7 +190,6 @@ class ClusteringConfig:
     threshold: float = _p(0.0, 1.0, lo_open=True)
     dilation_px: int = _p(0, 255)
     min_correspondences: int = _p(1, 100000)
-    member_weight: float = _p(0.0, 1.0)
 
 
 @dataclass(frozen=True)
@@ -207,48 +204,61 @@ class TrackingConfig:
     confirm_frames: int = _p(1, 1000)
     max_missed: int = _p(1, 1000)
     merge_px: float = _p(0.0)
-    box_size_alpha: float = _p(0.0, 1.0, lo_open=True)
-    reacquire_s: float = _p(0.0, 10.0)
-    reacquire_gate_sigmas: float = _p(0.0, lo_open=True)
-    reacquire_gate_m: float = _p(0.0, lo_open=True)
-    reacquire_moving_only: bool = _p()
-    coast_warn_s: float = _p(0.0, 10.0)
-    coast_cover_ratio: float = _p(0.0, 10.0)
-    coast_cover_frames: int = _p(1, 100)
-    coast_course_ratio: float = _p(0.0, 1.0, lo_open=True)
-    coast_course_points: float = _p(0.0, 1000.0)
-    coast_course_seen_points: float = _p(0.0, 1000.0)
-    coast_course_fraction: float = _p(0.0, 1.0)
-    coast_bearing_std_px: float = _p(0.0, 100.0)
-    outline_max_height_m: float = _p(0.0, 10.0)
-    outline_tolerance: float = _p(0.0, 10.0, lo_open=True)
+
+
+# ------------------------------------------------------------ per-track cues
+# One table per cue of ``appliance/decision/cues`` (``[cue.<name>]``); a cue without
+# parameters a user would change has none.
 
 
 @dataclass(frozen=True)
-class GroundConfig:
+class GroundCueConfig:
     contact_std_px: float = _p(0.0, 100.0, lo_open=True)
-    pitch_std_rad: float = _p(0.0, 0.5)
-    pitch_decay_s: float = _p(0.0, 100.0, lo_open=True)
-    process_accel_m_s2: float = _p(0.0, lo_open=True)
-    accel_std_m_s2: float = _p(0.0, 20.0)
-    accel_time_constant_s: float = _p(0.0, 100.0)
-    accel_min_speed_m_s: float = _p(0.0, 100.0)
-    initial_velocity_std_m_s: float = _p(0.0, 100.0, lo_open=True)
     max_range_m: float = _p(1.0, 1000.0)
     coast_s: float = _p(0.0, 10.0)
-    border_margin_px: int = _p(0, 1000)
-    scale_ttc_min_frames: int = _p(2, 1000)
-    scale_process_std: float = _p(0.0, 100.0)
-    gate_sigmas: float = _p(0.0, 100.0, lo_open=True)
-    memory_s: float = _p(0.0, 1000.0)
-    bearing_rate_std_rad_s: float = _p(0.0, 10.0)
-    bearing_window_s: float = _p(0.0, 10.0)
-    bearing_min_width_fraction: float = _p(0.0, 1.0)
-    bearing_min_frames: int = _p(3, 1000)
-    scale_from_outline: bool = _p()
-    range_rate_from_scale: bool = _p()
-    range_rate_std_gain: float = _p(0.0, 100.0, lo_open=True)
-    foot_halo_correction: bool = _p()
+
+
+@dataclass(frozen=True)
+class CrossingCueConfig:
+    window_s: float = _p(0.0, 10.0, lo_open=True)
+
+
+@dataclass(frozen=True)
+class ScaleCueConfig:
+    min_frames: int = _p(2, 1000)
+
+
+@dataclass(frozen=True)
+class RangeRateCueConfig:
+    std_gain: float = _p(0.0, 100.0, lo_open=True)
+
+
+@dataclass(frozen=True)
+class MotionCueConfig:
+    min_speed_m_s: float = _p(0.0, 50.0)
+    min_frames: int = _p(1, 1000)
+
+
+@dataclass(frozen=True)
+class OutlineCueConfig:
+    max_height_m: float = _p(0.0, 10.0, lo_open=True)
+
+
+@dataclass(frozen=True)
+class CueConfig:
+    ground: GroundCueConfig
+    crossing: CrossingCueConfig
+    scale: ScaleCueConfig
+    range_rate: RangeRateCueConfig
+    motion: MotionCueConfig
+    outline: OutlineCueConfig
+
+
+@dataclass(frozen=True)
+class HiddenConfig:
+    keep_s: float = _p(0.0, 10.0)
+    warn_s: float = _p(0.0, 10.0)
+    max_level: int = _p(0, 2)
 
 
 @dataclass(frozen=True)
@@ -259,21 +269,9 @@ class WarningConfig:
     hysteresis_s: float = _p(0.0, 10.0)
     min_persistence_frames: int = _p(1, 1000)
     hold_s: float = _p(0.0, 60.0)
-    corridor_hysteresis_m: float = _p(0.0, 10.0)
     horizon_s: float = _p(0.0, 60.0, lo_open=True)
-    bearing_tolerance_rad: float = _p(0.0, 1.0)
-    min_speed_m_s: float = _p(0.0, 50.0)
-    moving_sigmas: float = _p(0.0, 100.0)
-    moving_min_frames: int = _p(1, 1000)
     min_probability: float = _p(0.0, 1.0)
-    fast_mover_m_s: float = _p(0.0, 100.0)
-    coast_min_probability: float = _p(0.0, 1.0)
-    coast_max_level: int = _p(0, 2)
-    pool_covered_tracks: bool = _p()
     min_height_m: float = _p(0.0, 10.0)
-    velocity_significance_sigmas: float = _p(0.0, 100.0)
-    velocity_conditioning: bool = _p()
-    acceleration_significance_sigmas: float = _p(0.0, 100.0)
 
 
 @dataclass(frozen=True)
@@ -303,7 +301,8 @@ class Config:
     probability_map: ProbabilityMapConfig
     clustering: ClusteringConfig
     tracking: TrackingConfig
-    ground: GroundConfig
+    cue: CueConfig
+    hidden: HiddenConfig
     warning: WarningConfig
     runtime: RuntimeConfig
 
@@ -317,8 +316,10 @@ class Config:
     ) -> Config:
         """A copy with ``{section: {key: value}}`` applied and validated like a file."""
         raw = dataclasses.asdict(self)
-        _merge(raw, overrides, source, {})
-        return _build(raw, {s: {k: source for k in v} for s, v in overrides.items()}, None)
+        origin: dict[str, str] = {}
+        _merge(Config, raw, overrides, source, origin)
+        built: Config = _build(Config, raw, origin, "<config>", "")
+        return built
 
 
 # ---------------------------------------------------------------- loading
@@ -352,55 +353,62 @@ def read_toml(path: str | Path) -> dict[str, Any]:
 def load_config(path: str | Path | None = None) -> Config:
     """The default configuration, with the keys of ``path`` (if given) overriding it."""
     default_path = default_config_path()
-    raw = read_toml(default_path)
-    origin: dict[str, dict[str, str]] = {
-        s: {k: str(default_path) for k in v} for s, v in raw.items()
-    }
+    raw: dict[str, Any] = {}
+    origin: dict[str, str] = {}
+    _merge(Config, raw, read_toml(default_path), str(default_path), origin)
     if path is not None:
-        _merge(raw, read_toml(path), str(path), origin)
-    return _build(raw, origin, default_path)
+        _merge(Config, raw, read_toml(path), str(path), origin)
+    built: Config = _build(Config, raw, origin, str(default_path), "")
+    return built
 
 
-def _merge(
-    base: dict[str, Any], user: dict[str, Any], source: str, origin: dict[str, dict[str, str]]
-) -> None:
-    sections = {f.name: f.type for f in dataclasses.fields(Config)}
-    for section, values in user.items():
-        if section not in sections:
-            raise ConfigError(source, section, f"unknown section (known: {', '.join(sections)})")
-        if not isinstance(values, dict):
-            raise ConfigError(source, section, "must be a table")
-        known = {f.name for f in dataclasses.fields(_section_types()[section])}
-        for key, value in values.items():
-            if key not in known:
-                raise ConfigError(source, f"{section}.{key}", "unknown key")
-            base.setdefault(section, {})[key] = value
-            origin.setdefault(section, {})[key] = source
+def _tables(cls: type) -> dict[str, type]:
+    """The fields of a group of tables (``Config``, ``CueConfig``) that are tables themselves."""
+    hints = typing.get_type_hints(cls)
+    return {f.name: hints[f.name] for f in dataclasses.fields(cls)
+            if dataclasses.is_dataclass(hints[f.name])}
 
 
-def _section_types() -> dict[str, type]:
-    hints = typing.get_type_hints(Config)
-    return {f.name: hints[f.name] for f in dataclasses.fields(Config)}
+def _merge(cls: type, base: dict[str, Any], user: dict[str, Any], source: str,
+           origin: dict[str, str], prefix: str = "") -> None:
+    """Copy ``user``'s keys into ``base``, checking each against the schema ``cls``; remember
+    in ``origin`` (dotted key -> file) where each came from."""
+    tables = _tables(cls)
+    known = {f.name for f in dataclasses.fields(cls)}
+    for key, value in user.items():
+        name = prefix + key
+        if key not in known:
+            if tables and len(tables) == len(known):
+                raise ConfigError(source, name,
+                                  f"unknown section (known: {', '.join(prefix + t for t in tables)})")
+            raise ConfigError(source, name, "unknown key")
+        if key in tables:
+            if not isinstance(value, dict):
+                raise ConfigError(source, name, "must be a table")
+            _merge(tables[key], base.setdefault(key, {}), value, source, origin, name + ".")
+        else:
+            base[key] = value
+            origin[name] = source
 
 
-def _build(
-    raw: dict[str, Any], origin: dict[str, dict[str, str]], default_path: Path | None
-) -> Config:
-    sections: dict[str, Any] = {}
-    for name, cls in _section_types().items():
-        values = raw.get(name, {})
-        hints = typing.get_type_hints(cls)
-        kwargs: dict[str, Any] = {}
-        for f in dataclasses.fields(cls):
-            key = f"{name}.{f.name}"
-            src = origin.get(name, {}).get(f.name, str(default_path or "<config>"))
-            if f.name not in values:
-                raise ConfigError(src, key, "missing (not in the default configuration)")
-            kwargs[f.name] = _check(values[f.name], hints[f.name], f.metadata, src, key)
-        sections[name] = cls(**kwargs)
-    cfg = Config(**sections)
-    _check_cross(cfg, origin)
-    return cfg
+def _build(cls: type, raw: dict[str, Any], origin: dict[str, str], default: str,
+           prefix: str) -> Any:
+    hints = typing.get_type_hints(cls)
+    kwargs: dict[str, Any] = {}
+    for f in dataclasses.fields(cls):
+        key = prefix + f.name
+        typ = hints[f.name]
+        if isinstance(typ, type) and dataclasses.is_dataclass(typ):
+            kwargs[f.name] = _build(typ, raw.get(f.name, {}), origin, default, key + ".")
+            continue
+        src = origin.get(key, default)
+        if f.name not in raw:
+            raise ConfigError(src, key, "missing (not in the default configuration)")
+        kwargs[f.name] = _check(raw[f.name], typ, f.metadata, src, key)
+    built = cls(**kwargs)
+    if cls is Config:
+        _check_cross(built, origin)
+    return built
 
 
 def _check(value: Any, typ: Any, meta: Any, src: str, key: str) -> Any:
@@ -453,9 +461,9 @@ def _check(value: Any, typ: Any, meta: Any, src: str, key: str) -> Any:
     return value
 
 
-def _check_cross(cfg: Config, origin: dict[str, dict[str, str]]) -> None:
+def _check_cross(cfg: Config, origin: dict[str, str]) -> None:
     def src(section: str, key: str) -> str:
-        return origin.get(section, {}).get(key, "<config>")
+        return origin.get(f"{section}.{key}", "<config>")
 
     if len(cfg.camera.distortion) not in (0, 4, 5, 8, 12, 14):
         raise ConfigError(

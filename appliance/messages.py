@@ -74,12 +74,17 @@ class ParticleSet:
     weights: (N,) float in [0, 1], likelihood of independent motion at each
     particle (eq. 6, combined with the flow-length cue), before resampling.
     valid: (N,) bool, False where the flow could not be measured.
+    window_px: the Lucas-Kanade window the flows were measured with (px, square): a particle
+    beside an object still follows it up to half of it away (the halo).
+    flow_std_px: the flows' accuracy, sigma_p of eq. 5 (px).
     """
 
     positions: NDArray[np.float64]
     flow: NDArray[np.float64]
     weights: NDArray[np.float64]
     valid: NDArray[np.bool_]
+    window_px: int
+    flow_std_px: float
 
 
 @dataclass(frozen=True)
@@ -109,7 +114,9 @@ class ProbabilityMap:
 
 @dataclass(frozen=True)
 class TrackReport:
-    """One confirmed track as written to ``tracks.jsonl`` (spec)."""
+    """One confirmed track as written to ``tracks.jsonl`` (spec). ``reason``: why it warns or
+    what keeps it from warning ("warning", "caution", "not moving over ground", "ttc 3.4 s
+    above 3.0 s", ...; see ``decision/warnings.py``)."""
 
     id: int
     bbox: tuple[float, float, float, float]
@@ -118,6 +125,7 @@ class TrackReport:
     ttc_s: float | None
     distance_m: float | None
     bearing_rad: float | None = None
+    reason: str | None = None
 
 
 @dataclass(frozen=True)

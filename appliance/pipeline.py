@@ -14,12 +14,27 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from appliance.config import Config
-from appliance.decision.decide import DecisionOutput, DecisionState, decide, init_decision_state
-from appliance.messages import Frame, ProbabilityMap, SensorSample, StepOutput
+from appliance.decision.decide import (
+    DecisionOutput,
+    DecisionState,
+    decide,
+    init_decision_state,
+    observe,
+)
+from appliance.messages import (
+    EgoMotion,
+    Frame,
+    ParticleSet,
+    ProbabilityMap,
+    SensorSample,
+    StepOutput,
+)
 from appliance.vision.geometry import PinholeCamera
 from appliance.vision.perception import VisionState, init_vision_state, perceive
+from appliance.vision.probes import measure_points
 
 STAGES = ("vision", "decision", "total")
 
@@ -57,6 +72,29 @@ def check_frame(frame: Frame, camera: PinholeCamera) -> None:
         )
 
 
+def decision_step(
+    state: DecisionState,
+    frame_index: int,
+    t: float,
+    particles: ParticleSet,
+    ego: EgoMotion,
+    sensors: SensorSample,
+    cfg: Config,
+    camera: PinholeCamera,
+    images: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None,
+) -> tuple[DecisionState, DecisionOutput]:
+    """The decision stage of one frame: :func:`decide.observe`, the flow vision measures at the
+    pixels it asks about (outlines, hidden tracks) in ``images`` (the previous and this frame,
+    8-bit gray; None: nothing is measured), then :func:`decide.decide`. Decision never sees
+    the images."""
+    obs = observe(state, frame_index, t, particles, ego, sensors, cfg, camera)
+    flows = None
+    if images is not None:
+        flows = measure_points(images[0], images[1], obs.requests(), ego.rotation, camera,
+                               cfg.flow)
+    return decide(state, obs, flows, cfg)
+
+
 def step(
     state: PipelineState,
     frame: Frame,
@@ -73,9 +111,8 @@ def step(
     pair = None
     if state.vision.prev_image is not None and vision.prev_image is not None:
         pair = (state.vision.prev_image, vision.prev_image)
-    decision, out = decide(
-        state.decision, frame.index, frame.t, particles, ego, sensors, cfg, camera, pair
-    )
+    decision, out = decision_step(state.decision, frame.index, frame.t, particles, ego, sensors,
+                                  cfg, camera, pair)
     t2 = clock()
     result = StepOutput(
         frame=frame.index,

@@ -16,7 +16,7 @@ def _frame(high: list[tuple[float, float]], rng: np.random.Generator) -> Particl
     pos = np.vstack([low, np.array(high, dtype=float).reshape(-1, 2)])
     w = np.concatenate([np.full(len(low), 0.1), np.full(len(high), 0.9)])
     return ParticleSet(positions=pos, flow=np.zeros_like(pos), weights=w,
-                       valid=np.ones(len(pos), dtype=bool))
+                       valid=np.ones(len(pos), dtype=bool), window_px=9, flow_std_px=0.5)
 
 
 def test_the_longest_run_is_measured_where_it_happens() -> None:

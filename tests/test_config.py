@@ -66,6 +66,10 @@ def test_relative_dbc_resolves_against_the_user_file(tmp_path: Path) -> None:
         ('[vehicle_can]\ndbc = "nope.dbc"\n', "vehicle_can.dbc", "file not found"),
         ("[warning]\nttc_warning_s = 4.0\n", "warning.ttc_warning_s", "must not exceed"),
         ("[probability_map]\ngauss_window_px = 30\n", "probability_map.gauss_window_px", "odd"),
+        ("[cue.ground]\ncoast_s = -1.0\n", "cue.ground.coast_s", "out of range"),
+        ("[cue.groudn]\ncoast_s = 1.0\n", "cue.groudn", "unknown section"),
+        ("[cue.ground]\ncoast = 1.0\n", "cue.ground.coast", "unknown key"),
+        ("[cue]\nground = 1.0\n", "cue.ground", "must be a table"),
         ('[camera]\ndistortion = [0.1, "x"]\n', "camera.distortion", "list of numbers"),
         ("[detection\n", "", "invalid TOML"),
     ],
@@ -95,6 +99,8 @@ def test_config_is_frozen(default_config: Config) -> None:
 def test_with_overrides_validates(default_config: Config) -> None:
     c = default_config.with_overrides({"detection": {"particles": 64}})
     assert c.detection.particles == 64
+    c = default_config.with_overrides({"cue": {"scale": {"min_frames": 7}}})
+    assert c.cue.scale.min_frames == 7 and c.cue.ground == default_config.cue.ground
     with pytest.raises(ConfigError, match="detection.particles"):
         default_config.with_overrides({"detection": {"particles": -1}})
 

@@ -1,4 +1,4 @@
-"""decide() end to end on constructed particle sets with exact geometry.
+"""The decision stage end to end on constructed particle sets with exact geometry.
 
 A box-shaped mover and a static road/facade scene are projected through the
 camera on a moving ego vehicle; particles on the mover carry high weights and
@@ -16,8 +16,9 @@ import numpy as np
 import pytest
 
 from appliance.config import Config
-from appliance.decision.decide import DecisionOutput, decide, init_decision_state
+from appliance.decision.decide import DecisionOutput, init_decision_state
 from appliance.messages import EgoMotion, ParticleSet, SensorSample
+from appliance.pipeline import decision_step
 from appliance.vision.geometry import PinholeCamera, vehicle_from_camera_rotation
 
 CAM = PinholeCamera(640, 480, 700.0, 700.0, 319.5, 239.5)
@@ -84,7 +85,7 @@ def scene(cfg: Config, obj0: tuple[float, float] | None, vel: tuple[float, float
         w.append(np.clip(rng.normal(0.1, 0.05, len(sel)), 0, 1))
         p = np.vstack(pos)
         f = np.vstack(flow) + rng.normal(0, 0.05, p.shape)
-        parts = ParticleSet(p, f, np.concatenate(w), np.ones(len(p), dtype=bool))
+        parts = ParticleSet(p, f, np.concatenate(w), np.ones(len(p), dtype=bool), 9, 0.5)
         fwd = np.array([0.0, 0.0, -1.0]) if speed > 0 else np.zeros(3)
         ego = EgoMotion(still, fwd, (CAM.cx, CAM.cy), still, fwd, (CAM.cx, CAM.cy), 150, True,
                         standstill=speed <= 0)
@@ -97,7 +98,7 @@ def run(cfg: Config, steps: Iterator[Step]) -> list[tuple[Step, DecisionOutput]]
     state = init_decision_state(cfg, CAM)
     out = []
     for s in steps:
-        state, o = decide(state, s.frame, s.t, s.particles, s.ego, s.sensors, cfg, CAM)
+        state, o = decision_step(state, s.frame, s.t, s.particles, s.ego, s.sensors, cfg, CAM)
         out.append((s, o))
     return out
 
@@ -156,11 +157,12 @@ def test_static_scene_and_empty_frames_give_nothing(default_config: Config) -> N
     res = run(cfg, scene(cfg, None, (0.0, 0.0), 12.0, 60))
     assert all(o.tracks == () and o.warnings == () and o.warning_level == 0 for _, o in res)
     state = init_decision_state(cfg, CAM)
-    empty = ParticleSet(np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0), np.zeros(0, dtype=bool))
+    empty = ParticleSet(np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0), np.zeros(0, dtype=bool),
+                        9, 0.5)
     ego = EgoMotion(np.zeros(3), np.zeros(3), None, np.zeros(3), np.zeros(3), None, 0, False)
     for k in range(5):
-        state, o = decide(state, k, k / FPS, empty, ego, SensorSample(k / FPS, float("nan"), 0.0,
-                                                                       can_valid=False), cfg, CAM)
+        state, o = decision_step(state, k, k / FPS, empty, ego,
+                                 SensorSample(k / FPS, float("nan"), 0.0, can_valid=False), cfg, CAM)
         assert o.tracks == () and o.warning_level == 0 and o.warning_track is None
         assert o.prob_map.p.shape == (120, 160)
 
@@ -189,7 +191,7 @@ def test_box_touching_the_border_falls_back_to_the_scale_cue(default_config: Con
     coast_s, then the distance is null while the scale cue (referred to the bumper with the
     depth it carried on) still gives the TTC, and the level-2 warning stays on."""
     # (this synthetic cloud is sparser than the vision's, so its eq. 20 probability is lower)
-    cfg = default_config.with_overrides({"ground": {"coast_s": 0.5},
+    cfg = default_config.with_overrides({"cue": {"ground": {"coast_s": 0.5}},
                                          "warning": {"min_probability": 0.4}})
     walk, start = 1.0, 6.0  # m/s, m ahead of the bumper
     res = run(cfg, scene(cfg, (3.9 + 0.2 + start, -0.2), (-walk, 0.0), 0.0, 160, n_obj=400))
@@ -218,13 +220,13 @@ def test_replay_is_deterministic(default_config: Config) -> None:
 
 
 def test_long_occlusion_reacquires_the_lost_track(default_config: Config) -> None:
-    """Hidden for 1 s (a parked car): the image track is deleted; with ``reacquire_s`` the
+    """Hidden for 1 s (a parked car): the image track is deleted; with ``hidden.keep_s`` the
     coasted 3-D state takes the reappearing object back under its id, moving at once."""
     hidden = frozenset(range(40, 70))
     obj0, vel = crossing(8.0, 1.4, 5.0, -0.45)
-    no = default_config.with_overrides({"tracking": {"reacquire_s": 0.0, "coast_warn_s": 0.0}})
+    no = default_config.with_overrides({"hidden": {"keep_s": 0.0, "warn_s": 0.0}})
     off = run(no, scene(no, obj0, vel, 8.0, 90, hidden=hidden))
-    cfg = default_config.with_overrides({"tracking": {"reacquire_s": 2.0}})
+    cfg = default_config.with_overrides({"hidden": {"keep_s": 2.0}})
     on = run(cfg, scene(cfg, obj0, vel, 8.0, 90, hidden=hidden))
     before = {tr.id for tr in on[38][1].tracks}
     assert len(before) == 1
@@ -238,34 +240,30 @@ def test_long_occlusion_reacquires_the_lost_track(default_config: Config) -> Non
     assert first.tracks[0].ttc_s is not None
 
 
-def test_reacquisition_gate_rejects_a_far_object(default_config: Config) -> None:
-    """The gate in metres: an object reappearing further than ``reacquire_gate_m`` from the
+def test_reacquisition_gate_rejects_a_far_object(default_config: Config,
+                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """The gate in metres: an object reappearing further than ``REACQUIRE_GATE_M`` from the
     coasted position (here by the coasting error alone) starts a new track."""
     hidden = frozenset(range(40, 70))
     obj0, vel = crossing(8.0, 1.4, 5.0, -0.45)
-    cfg = default_config.with_overrides({"tracking": {"reacquire_s": 2.0,
-                                                      "reacquire_gate_m": 0.5}})
+    monkeypatch.setattr("appliance.decision.lost_tracks.REACQUIRE_GATE_M", 0.5)
+    cfg = default_config.with_overrides({"hidden": {"keep_s": 2.0}})
     res = run(cfg, scene(cfg, obj0, vel, 8.0, 90, hidden=hidden))
     before = {tr.id for tr in res[38][1].tracks}
     later = {tr.id for _, o in res[75:] for tr in o.tracks}
     assert later and not later & before
 
 
-def test_only_tracks_that_moved_are_reacquired_by_default(default_config: Config) -> None:
-    """Hidden before its 3-D state could show motion (fewer than ``moving_min_frames``
-    contacts): a new track by default, the old one with ``reacquire_moving_only`` false."""
-    hidden = frozenset(range(10, 40))
+def test_only_tracks_that_moved_are_reacquired(default_config: Config) -> None:
+    """Hidden before its 3-D state could show motion (fewer than ``cue.motion.min_frames``
+    contacts): it comes back as a new track; hidden later, it keeps its id."""
+    cfg = default_config.with_overrides({"hidden": {"keep_s": 2.0}})
     obj0, vel = crossing(8.0, 1.4, 5.0, -0.45)
-    ids = {}
-    for only in (True, False):
-        cfg = default_config.with_overrides(
-            {"tracking": {"reacquire_s": 2.0, "reacquire_moving_only": only}})
-        res = run(cfg, scene(cfg, obj0, vel, 8.0, 60, hidden=hidden))
-        before = {tr.id for tr in res[8][1].tracks}
-        assert len(before) == 1
-        ids[only] = ({tr.id for _, o in res[45:] for tr in o.tracks}, before)
-    assert ids[True][0] and not ids[True][0] & ids[True][1]
-    assert ids[False][0] == ids[False][1]
+    early = run(cfg, scene(cfg, obj0, vel, 8.0, 60, hidden=frozenset(range(10, 40))))
+    before = {tr.id for tr in early[8][1].tracks}
+    assert len(before) == 1
+    after = {tr.id for _, o in early[45:] for tr in o.tracks}
+    assert after and not after & before
 
 
 def test_a_box_cut_by_the_side_border_takes_its_bearing_at_its_inner_edge(
@@ -275,7 +273,8 @@ def test_a_box_cut_by_the_side_border_takes_its_bearing_at_its_inner_edge(
     bearing is taken at the inner edge, which moves with the object. A box clear of the
     borders keeps its track's centre."""
     from appliance.decision.clustering import Cluster
-    from appliance.decision.decide import _bearing_pixel, _border_sides
+    from appliance.decision.frame import BORDER_MARGIN_PX, border_sides
+    from appliance.decision.frame import bearing_pixel as take_bearing_pixel
     from appliance.decision.tracking import ImageTrack
 
     def cluster(u0: float, u1: float) -> Cluster:
@@ -289,13 +288,10 @@ def test_a_box_cut_by_the_side_border_takes_its_bearing_at_its_inner_edge(
         return ImageTrack(uid=1, id=1, x=x, P=np.ones((2, 3, 3)), size=(60.0, 40.0), age=10,
                           misses=0, cluster=c, probability=0.9)
 
-    cfg = default_config
-
     def bearing_pixel(tr: ImageTrack, c: Cluster | None) -> tuple[tuple[float, float], str]:
-        sides = (False, False, False) if c is None else _border_sides(
-            c, CAM, cfg.ground.border_margin_px, cfg.clustering.member_weight,
-            0.5 * cfg.flow.window_px)
-        return _bearing_pixel(tr, c, sides)
+        sides = (False, False, False) if c is None else border_sides(c, CAM, BORDER_MARGIN_PX,
+                                                                     4.5)
+        return take_bearing_pixel(tr, c, sides)
 
     cut = cluster(2.0, 60.0)
     assert bearing_pixel(track(cut), cut) == ((60.0, 260.0), "left")

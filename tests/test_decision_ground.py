@@ -8,8 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from appliance.config import Config, GroundConfig, MountConfig
+from appliance.config import Config, MountConfig
 from appliance.decision.ground_state import (
+    PITCH_DECAY_S,
+    GroundModel,
     CameraPose,
     GroundContact,
     GroundTrack,
@@ -40,6 +42,7 @@ from appliance.decision.threat import (
     significant_acceleration,
     significant_velocity,
 )
+from appliance.decision.assess import ACCELERATION_SIGNIFICANCE
 from appliance.messages import EgoMotion, SensorSample
 from appliance.vision.geometry import (
     PinholeCamera,
@@ -93,16 +96,15 @@ def test_the_foot_halo_is_there_only_where_the_road_below_flows_too_little_to_te
 def test_ground_contact_covariance_grows_with_range(default_config: Config) -> None:
     pose = CameraPose((1.9, 0.0, 1.3), 0.0, 0.0, 0.0)
     near = ground_contact(CAM, tuple(project(CAM, pose, np.array([8.0, 0.0, 0.0]))[0]), pose,
-                          default_config.ground)
+                          GroundModel())
     far = ground_contact(CAM, tuple(project(CAM, pose, np.array([40.0, 0.0, 0.0]))[0]), pose,
-                         default_config.ground)
+                         GroundModel())
     assert near is not None and far is not None
     assert near.z == pytest.approx([8.0, 0.0], abs=1e-6)
     assert math.sqrt(far.R[0, 0]) > 10 * math.sqrt(near.R[0, 0])
     # beyond max_range_m: unusable (scale cue only)
-    cfg = default_config.with_overrides({"ground": {"max_range_m": 30.0}})
     assert ground_contact(CAM, tuple(project(CAM, pose, np.array([40.0, 0.0, 0.0]))[0]), pose,
-                          cfg.ground) is None
+                          GroundModel(max_range_m=30.0)) is None
 
 
 @pytest.mark.parametrize("pan", [0.0, 0.4])
@@ -115,15 +117,15 @@ def test_body_pitch_from_refined_minus_prior_rotation(default_config: Config, pa
     r = matrix_to_euler(R)
     ego = EgoMotion(r, np.zeros(3), None, np.zeros(3), np.zeros(3), None, 50, True)
     pose = CameraPose(pos, 0.02, pan, 0.0)
-    b = update_body_pitch(0.0, ego, pose, 0.0, default_config.ground)
+    b = update_body_pitch(0.0, ego, pose, 0.0)
     assert b == pytest.approx(0.01, rel=0.02)
     # the prior (CAN + PTU) explains it all: no body pitch
     explained = EgoMotion(r, np.zeros(3), None, r, np.zeros(3), None, 50, True)
-    assert update_body_pitch(0.0, explained, pose, 0.0, default_config.ground) == pytest.approx(0.0)
+    assert update_body_pitch(0.0, explained, pose, 0.0) == pytest.approx(0.0)
     # not confident: only decays
     lost = EgoMotion(r, np.zeros(3), None, np.zeros(3), np.zeros(3), None, 3, False)
-    decayed = update_body_pitch(0.01, lost, pose, 1.0, default_config.ground)
-    assert decayed == pytest.approx(0.01 * math.exp(-1.0 / default_config.ground.pitch_decay_s))
+    decayed = update_body_pitch(0.01, lost, pose, 1.0)
+    assert decayed == pytest.approx(0.01 * math.exp(-1.0 / PITCH_DECAY_S))
 
 
 def world_to_vehicle(P: np.ndarray, ego_xy: np.ndarray, psi: float) -> np.ndarray:
@@ -136,7 +138,7 @@ def world_to_vehicle(P: np.ndarray, ego_xy: np.ndarray, psi: float) -> np.ndarra
 def test_ground_filter_removes_ego_motion(default_config: Config, obj_vel: tuple[float, float]
                                           ) -> None:
     """Ego on an arc at 12 m/s, 0.15 rad/s: the filter finds the object's velocity over ground."""
-    cfg = default_config.ground
+    cfg = GroundModel()
     rng = np.random.default_rng(0)
     speed, yaw, dt = 12.0, 0.15, 1.0 / 30.0
     obj = np.array([30.0, 3.0])
@@ -332,7 +334,7 @@ def test_bumper_correction_and_fusion(default_config: Config) -> None:
 def test_outlier_contacts_are_skipped_and_a_run_of_them_restarts(default_config: Config) -> None:
     from appliance.decision.ground_state import ground_absorb
 
-    cfg = default_config.ground
+    cfg = GroundModel()
     R = np.diag([0.3, 0.1]) ** 2
     g = None
     for k in range(10):
@@ -358,9 +360,9 @@ def test_outlier_contacts_are_skipped_and_a_run_of_them_restarts(default_config:
 
 
 def test_moving_over_ground_needs_speed_significance_and_contacts(default_config: Config) -> None:
-    from appliance.decision.decide import moves_over_ground
+    from appliance.decision.cues.motion import moves_over_ground
 
-    cfg = default_config  # 0.5 m/s, 3 sigma, 10 contacts
+    cfg = default_config.cue.motion  # 0.5 m/s, 3 sigma, 10 contacts
     P = np.diag([0.1, 0.1, 0.2, 0.2]) ** 2
     walking = GroundTrack(np.array([15.0, -3.0, 0.0, 1.4]), P, 0.0, 30)
     assert moves_over_ground(walking, cfg)
@@ -374,7 +376,7 @@ def test_fading_memory_recovers_from_a_wrong_start(default_config: Config) -> No
     """A state that started with a wrong velocity (a wrong association) recovers faster
     with the fading memory than without."""
     def run(memory: float) -> float:
-        cfg = default_config.with_overrides({"ground": {"memory_s": memory}}).ground
+        cfg = GroundModel(memory_s=memory)
         R = np.diag([0.5, 0.2]) ** 2
         P = np.diag([0.5, 0.2, 0.3, 0.3]) ** 2
         g = GroundTrack(np.array([30.0, 0.0, 6.0, 0.0]), P, 0.0, 20)  # believes 6 m/s away
@@ -392,7 +394,7 @@ def test_velocity_prior_from_the_bearing_rate(default_config: Config) -> None:
     the first frames (bearing rate), along it nothing is."""
     from appliance.decision.ground_state import velocity_prior
 
-    cfg = default_config.ground
+    cfg = GroundModel()
     z, v_og, speed = np.array([30.0, 5.0]), np.array([0.0, -8.0]), 10.0
     d = z - [1.9, 0.0]
     rel = v_og - [speed, 0.0]
@@ -508,13 +510,13 @@ def test_a_bearing_corrects_only_across_the_line_of_sight() -> None:
     assert bearing_update(g, math.nan, cam, 0.003) is g
 
 
-def _follow_braking_car(cfg: GroundConfig, seed: int = 0, mount: MountConfig | None = None,
-                        rate_std: float = 0.03) -> tuple[GroundTrack, float]:
+def _follow_braking_car(cfg: GroundModel, seed: int = 0, mount: MountConfig | None = None,
+                        rate_std: float = 0.03, std_gain: float = 1.0) -> tuple[GroundTrack, float]:
     """Ego at 50 km/h behind a car 16 m ahead (rear axle frame) at the same speed, which brakes
     at 2 m/s^2 from t = 0.5 s; contacts every 1/30 s with 0.3 m noise in range, 1.5 s of
     braking; the state starts at the car's speed +- 1 m/s (as from a track followed for a
     while). With ``mount`` the state also takes the car's expansion rate every frame, as the
-    pipeline does (``rate_std`` 1/s noise, counted ``range_rate_std_gain`` times). Returns the
+    pipeline does (``rate_std`` 1/s noise, counted ``std_gain`` times, ``cue.range_rate.std_gain``). Returns the
     state and the car's true velocity over ground."""
     rng = np.random.default_rng(seed)
     dt, v0, decel = 1 / 30, 50 / 3.6, 2.0
@@ -533,7 +535,7 @@ def _follow_braking_car(cfg: GroundConfig, seed: int = 0, mount: MountConfig | N
         g = ground_update(ground_predict(g, dt, sensors, cfg), contact, t)
         if mount is not None:
             rate = decel * tb / (gap - mount.x_m) + rng.normal(0.0, rate_std)
-            g = range_rate_update(g, rate, (cfg.range_rate_std_gain * rate_std) ** 2,
+            g = range_rate_update(g, rate, (std_gain * rate_std) ** 2,
                                   camera_pose(mount, 0.0, sensors), v0, cfg.gate_sigmas)
     assert g is not None
     return g, v0 - decel * (60 * dt - 0.5)
@@ -543,9 +545,8 @@ def test_acceleration_state_follows_a_braking_car(default_config: Config) -> Non
     """With the acceleration model (Singer) the state's velocity keeps up with a car braking at
     2 m/s^2 and its acceleration says so; the constant-velocity state lags behind (its
     velocity still near the speed before braking)."""
-    ca_cfg = default_config.with_overrides({"ground": {"accel_std_m_s2": 3.0,
-                                                       "range_rate_from_scale": False}}).ground
-    cv_cfg = default_config.with_overrides({"ground": {"accel_std_m_s2": 0.0}}).ground
+    ca_cfg = GroundModel(accel_std_m_s2=3.0)
+    cv_cfg = GroundModel(accel_std_m_s2=0.0)
     lags_ca, lags_cv, accels = [], [], []
     for seed in range(20):
         ca, v_true = _follow_braking_car(ca_cfg, seed)
@@ -571,22 +572,23 @@ def test_a_braking_cars_time_to_collision_keeps_its_deceleration(default_config:
     gap, closing = 16.0 - 0.5 * decel * 1.5 ** 2 - r - mount.vehicle_front_m, decel * 1.5
     truth = (-closing + math.sqrt(closing ** 2 + 2 * decel * gap)) / decel
 
-    errors: dict[float, list[float]] = {cfg.warning.acceleration_significance_sigmas: [], 2.0: []}
+    errors: dict[float, list[float]] = {ACCELERATION_SIGNIFICANCE: [], 2.0: []}
     for seed in range(20):
-        g, _ = _follow_braking_car(cfg.ground, seed, mount)
+        g, _ = _follow_braking_car(GroundModel(), seed, mount,
+                                   std_gain=cfg.cue.range_rate.std_gain)
         for sigmas, err in errors.items():
             a = significant_acceleration(g.velocity, g.acceleration, g.P, sigmas)
             ttc = predict_path(g.position, g.velocity, v0, 0.0, mount,
                                cfg.warning.corridor_margin_m, r, 6.0, accel=a).ttc
             err.append(abs(ttc - truth) / truth if ttc is not None else math.inf)
-    assert np.median(errors[cfg.warning.acceleration_significance_sigmas]) < 0.15
+    assert np.median(errors[ACCELERATION_SIGNIFICANCE]) < 0.15
     assert np.median(errors[2.0]) > 0.3
 
 
 def test_coasting_forgets_the_acceleration(default_config: Config) -> None:
     """Without contacts (``steady``) the state moves at constant velocity: an acceleration
     cannot be followed while the object is hidden."""
-    cfg = default_config.with_overrides({"ground": {"accel_std_m_s2": 3.0}}).ground
+    cfg = GroundModel(accel_std_m_s2=3.0)
     P = np.diag([0.2, 0.2, 0.3, 0.3, 0.5, 0.5]) ** 2
     g = GroundTrack(np.array([20.0, -8.0, 0.0, 8.0, 0.0, 1.5]), P, 0.0, 30)  # a crossing car
     sensors = SensorSample(0.0, 10.0, 0.0)
@@ -606,8 +608,8 @@ def test_slow_objects_are_followed_at_constant_velocity(default_config: Config) 
     """Below ``accel_min_speed_m_s`` (a pedestrian) the acceleration is not estimated: the
     state is updated exactly as the constant-velocity one (its range noise would otherwise
     come out as acceleration and make its velocity noisier)."""
-    ca = default_config.with_overrides({"ground": {"accel_std_m_s2": 3.0}}).ground
-    cv = default_config.with_overrides({"ground": {"accel_std_m_s2": 0.0}}).ground
+    ca = GroundModel(accel_std_m_s2=3.0)
+    cv = GroundModel(accel_std_m_s2=0.0)
     rng = np.random.default_rng(3)
     R = np.diag([0.4, 0.1]) ** 2
     sensors = SensorSample(0.0, 10.0, 0.0)
@@ -662,7 +664,7 @@ def test_significant_acceleration() -> None:
 def test_the_measured_covariance_is_kept_while_coasting(default_config: Config) -> None:
     """``P_measured`` is P after the last measurement: predictions grow P and leave it, a
     contact or a bearing sets it again; the velocity it makes significant stays so."""
-    cfg = default_config.with_overrides({"ground": {"process_accel_m_s2": 4.0}}).ground
+    cfg = GroundModel(process_accel_m_s2=4.0)
     R = np.diag([0.4, 0.1]) ** 2
     sensors = SensorSample(0.0, 10.0, 0.0)
     g = ground_init(GroundContact(np.array([25.0, -4.0]), R), 0.0, cfg,

@@ -20,7 +20,7 @@ def particles(pos: list[tuple[float, float]], w: list[float],
               flow: list[tuple[float, float]] | None = None) -> ParticleSet:
     p = np.array(pos, dtype=float).reshape(-1, 2)
     f = np.zeros_like(p) if flow is None else np.array(flow, dtype=float).reshape(-1, 2)
-    return ParticleSet(p, f, np.array(w, dtype=float), np.ones(len(p), dtype=bool))
+    return ParticleSet(p, f, np.array(w, dtype=float), np.ones(len(p), dtype=bool), 9, 0.5)
 
 
 def blob(center: tuple[float, float], n: int, w: float, spread: float = 12.0,
@@ -49,7 +49,7 @@ def test_eq19_eq20_hand_checked() -> None:
 
 
 def test_lone_particle_and_normalised_convolution(default_config: Config) -> None:
-    cfg = default_config.probability_map  # evidence_particles = 1, scale 4
+    cfg = default_config.probability_map  # EVIDENCE_PARTICLES = 1, scale 4
     shape = map_shape(CAM, cfg.scale)
     p = spatial_probability(particles([(100.0, 100.0)], [1.0]), shape, cfg.scale, cfg)
     assert p[25, 25] == pytest.approx(0.5, abs=1e-3)  # w / (1 + evidence)
@@ -67,7 +67,7 @@ def test_invalid_and_outside_particles_are_ignored(default_config: Config) -> No
     cfg = default_config.probability_map
     ps = ParticleSet(np.array([[100.0, 100.0], [-5.0, 10.0], [700.0, 10.0], [np.nan, 3.0]]),
                      np.zeros((4, 2)), np.array([1.0, 1.0, 1.0, 1.0]),
-                     np.array([False, True, True, True]))
+                     np.array([False, True, True, True]), 9, 0.5)
     p = spatial_probability(ps, map_shape(CAM, cfg.scale), cfg.scale, cfg)
     assert not np.any(p)
 
@@ -129,7 +129,7 @@ def test_clusters_boxes_counts_and_eq20_from_the_map(default_config: Config) -> 
     assert c.mean_probability == pytest.approx(0.8, abs=1e-6)  # eq. 20 with s_i = p(x_i)
     # eq. 19 with equal s_i: plain mean (3 + 3 + 3 - 1) / 4 = 2, (1 + 1 + 1 + 0) / 4 = 0.75
     assert c.mean_flow == pytest.approx((2.0, 0.75))
-    # box spans the correspondences with weight >= member_weight (not the 0.1 one)
+    # box spans the correspondences with weight >= MEMBER_WEIGHT (not the 0.1 one)
     assert c.bbox == (410.0, 210.0, 431.0, 231.0)
     # region box is the dilated region (larger than the 40 px block)
     assert c.region_bbox[0] < 400 and c.region_bbox[2] > 440

@@ -2,8 +2,9 @@
 
 A textured fronto-parallel wall at depth Z seen by a camera driving straight at it:
 between two frames the wall's image is magnified about the principal point by
-``Z_prev / Z_cur``, rendered here with OpenCV. Lucas-Kanade in a box then says
-whether the wall is nearer than an object at a given depth would be.
+``Z_prev / Z_cur``, rendered here with OpenCV. The flow vision measures at the probe's
+points (vision/probes.py) then says whether the wall is nearer than an object at a given
+depth would be.
 """
 
 from __future__ import annotations
@@ -16,21 +17,24 @@ import numpy as np
 import pytest
 
 from appliance.config import Config
+from appliance.decision import lost_tracks
+from appliance.decision.cues import TrackCues
 from appliance.decision.lost_tracks import LostTrack
 from appliance.decision.occlusion import (
+    CoastProbe,
     band_points,
-    coasted_course,
-    coasted_cover,
-    course_points,
-    cover_ratio,
+    course_count,
+    course_probe,
+    cover_probe,
     head_band,
     probe_box,
     probe_points,
 )
-from appliance.decision.track_cues import TrackCues
+from appliance.decision.occlusion import cover_ratio as cover_from_flow
 from appliance.decision.tracking import ImageTrack
 from appliance.messages import EgoMotion, SensorSample
-from appliance.vision.geometry import PinholeCamera
+from appliance.vision.geometry import FloatArray, PinholeCamera, matrix_to_euler
+from appliance.vision.probes import PointFlow, measure_points
 
 CAM = PinholeCamera(640, 480, 700.0, 700.0, 319.5, 239.5)
 STEP_M = 0.4          # camera travel between the frames (12 m/s at 30 fps)
@@ -57,13 +61,35 @@ def wall_pair(depth_cur: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
 T_M = np.array([0.0, 0.0, -STEP_M])   # X_cur = X_prev + t: the camera moved forward
 
 
+def measured(prev: np.ndarray, cur: np.ndarray, pts: FloatArray, R: np.ndarray, cfg: Config
+             ) -> PointFlow:
+    """The flow vision measures at ``pts`` of ``cur``, the camera having rotated by ``R``."""
+    return measure_points(prev, cur, {0: pts}, matrix_to_euler(R), CAM, cfg.flow)[0]
+
+
+def cover_ratio(prev: np.ndarray, cur: np.ndarray, box: tuple[float, float, float, float],
+                depth: float, R: np.ndarray, t_m: np.ndarray, cfg: Config) -> tuple[float, int]:
+    """The cover ratio of ``box`` (its probe grid) for an object at ``depth`` m."""
+    pts = probe_points(box, CAM.width, CAM.height)
+    return cover_from_flow(CoastProbe(pts, depth, R, t_m), measured(prev, cur, pts, R, cfg), CAM)
+
+
+def course_points(prev: np.ndarray, cur: np.ndarray, box: tuple[float, float, float, float],
+                  depth: float, R: np.ndarray, t_m: np.ndarray, cfg: Config,
+                  low_ratio: float = 0.25) -> tuple[float, float]:
+    """The head-band count and column of ``box`` (its band grid) for an object at ``depth`` m."""
+    pts = band_points(box, CAM.width, CAM.height)
+    return course_count(CoastProbe(pts, depth, R, t_m), measured(prev, cur, pts, R, cfg), CAM,
+                        low_ratio)
+
+
 @pytest.mark.parametrize(("wall_m", "object_m"), [(10.0, 15.0), (10.0, 10.0), (15.0, 10.0)])
 def test_cover_ratio_is_the_depth_ratio(default_config: Config, wall_m: float,
                                         object_m: float) -> None:
     """What is in the box at ``wall_m`` against an object expected at ``object_m``: the
     ratio is about ``object_m / wall_m`` (> 1: something nearer covers the object)."""
     prev, cur = wall_pair(wall_m)
-    ratio, n = cover_ratio(prev, cur, BOX, object_m, np.eye(3), T_M, CAM, default_config.flow)
+    ratio, n = cover_ratio(prev, cur, BOX, object_m, np.eye(3), T_M, default_config)
     expected = (object_m + STEP_M) / (wall_m + STEP_M)
     assert n >= 20
     assert ratio == pytest.approx(expected, rel=0.08)
@@ -79,8 +105,8 @@ def test_rotation_is_removed_before_the_ratio(default_config: Config) -> None:
     shift = CAM.fx * math.tan(yaw)   # a point at the centre moves by f tan(yaw) to the right
     cur = cv2.warpAffine(cur, np.array([[1.0, 0.0, shift], [0.0, 1.0, 0.0]]), (CAM.width, CAM.height),
                          borderMode=cv2.BORDER_REFLECT)
-    right, _ = cover_ratio(prev, cur, BOX, 15.0, R, T_M, CAM, default_config.flow)
-    wrong, _ = cover_ratio(prev, cur, BOX, 15.0, np.eye(3), T_M, CAM, default_config.flow)
+    right, _ = cover_ratio(prev, cur, BOX, 15.0, R, T_M, default_config)
+    wrong, _ = cover_ratio(prev, cur, BOX, 15.0, np.eye(3), T_M, default_config)
     assert right == pytest.approx(15.4 / 10.4, rel=0.1)
     assert abs(wrong - 15.4 / 10.4) > 0.3
 
@@ -89,14 +115,14 @@ def test_flat_or_unmeasurable_boxes_give_no_ratio(default_config: Config) -> Non
     """A flat image (nothing to track), a box outside the image, an unknown translation and a
     box at the epipole (no static flow to compare with) give NaN and 0 points, no exception."""
     flat = np.full((CAM.height, CAM.width), 90, np.uint8)
-    assert cover_ratio(flat, flat, BOX, 10.0, np.eye(3), T_M, CAM, default_config.flow)[1] == 0
+    assert cover_ratio(flat, flat, BOX, 10.0, np.eye(3), T_M, default_config)[1] == 0
     prev, cur = wall_pair(10.0)
     out = (700.0, 500.0, 760.0, 600.0)
-    assert cover_ratio(prev, cur, out, 10.0, np.eye(3), T_M, CAM, default_config.flow)[1] == 0
+    assert cover_ratio(prev, cur, out, 10.0, np.eye(3), T_M, default_config)[1] == 0
     nan_t = np.full(3, np.nan)
-    assert cover_ratio(prev, cur, BOX, 10.0, np.eye(3), nan_t, CAM, default_config.flow)[1] == 0
+    assert cover_ratio(prev, cur, BOX, 10.0, np.eye(3), nan_t, default_config)[1] == 0
     centre = (317.0, 237.0, 322.0, 242.0)
-    ratio, n = cover_ratio(prev, cur, centre, 10.0, np.eye(3), T_M, CAM, default_config.flow)
+    ratio, n = cover_ratio(prev, cur, centre, 10.0, np.eye(3), T_M, default_config)
     assert n == 0 and math.isnan(ratio)
 
 
@@ -115,17 +141,14 @@ def _lost(cover: tuple[float, ...]) -> LostTrack:
     return LostTrack(id=1, cues=TrackCues(), cover=cover)
 
 
-def test_a_lost_track_counts_as_hidden_on_the_median_of_its_last_ratios(
-        default_config: Config) -> None:
-    cfg = default_config.with_overrides({"tracking": {"coast_cover_ratio": 1.15, "coast_cover_frames": 5}})
-    assert _lost((1.3, 1.2, 0.4, 1.25, 1.4)).covered(cfg)         # one bad frame does not decide
-    assert not _lost((0.8, 0.7, 1.6, 0.9, 0.75)).covered(cfg)     # nor does one high one
-    assert not _lost((1.3, 1.3, 1.3, 0.7, 0.8, 0.7, 0.6, 0.9)).covered(cfg)  # only the last 5 count
-    assert _lost((math.nan, 1.3, math.nan, 1.2)).covered(cfg)    # unmeasured frames are left out
-    assert not _lost((math.nan, math.nan)).covered(cfg)           # nothing measured: not hidden
-    assert not _lost(()).covered(cfg)
-    off = cfg.with_overrides({"tracking": {"coast_cover_ratio": 0.0}})
-    assert _lost(()).covered(off)                                 # the test off: every lost track
+def test_a_lost_track_counts_as_hidden_on_the_median_of_its_last_ratios() -> None:
+    assert (lost_tracks.COVER_RATIO, lost_tracks.COVER_FRAMES) == (1.15, 5)
+    assert _lost((1.3, 1.2, 0.4, 1.25, 1.4)).covered()         # one bad frame does not decide
+    assert not _lost((0.8, 0.7, 1.6, 0.9, 0.75)).covered()     # nor does one high one
+    assert not _lost((1.3, 1.3, 1.3, 0.7, 0.8, 0.7, 0.6, 0.9)).covered()  # only the last 5 count
+    assert _lost((math.nan, 1.3, math.nan, 1.2)).covered()     # unmeasured frames are left out
+    assert not _lost((math.nan, math.nan)).covered()           # nothing measured: not hidden
+    assert not _lost(()).covered()
 
 
 def coasted_at(u: float, v: float) -> tuple[ImageTrack, EgoMotion, SensorSample]:
@@ -143,16 +166,17 @@ def coasted_at(u: float, v: float) -> tuple[ImageTrack, EgoMotion, SensorSample]
 
 
 def test_coasted_cover_needs_images_and_motion(default_config: Config) -> None:
-    """From a coasted image track and its foot point: the ratio with the image pair, NaN
-    without it or at a standstill."""
+    """From a coasted image track and its foot point: the ratio with the flow measured at its
+    probe, NaN without a measured flow; no probe at a standstill."""
     prev, cur = wall_pair(10.0)
     tr, ego, sensors = coasted_at(445.0, 330.0)
     foot = np.array([1.0, 1.2, 15.0])
-    ratio = coasted_cover(tr, foot, (prev, cur), ego, sensors, 1.0 / 30.0, default_config.flow, CAM)
+    p = cover_probe(tr, foot, ego, sensors, 1.0 / 30.0, CAM)
+    assert p is not None and p.depth_m == 15.0
+    ratio, _ = cover_from_flow(p, measured(prev, cur, p.points, p.R, default_config), CAM)
     assert ratio == pytest.approx(15.4 / 10.4, rel=0.1)
-    assert math.isnan(coasted_cover(tr, foot, None, ego, sensors, 1 / 30, default_config.flow, CAM))
-    halt = replace(ego, standstill=True)
-    assert math.isnan(coasted_cover(tr, foot, (prev, cur), halt, sensors, 1 / 30, default_config.flow, CAM))
+    assert math.isnan(cover_from_flow(p, None, CAM)[0])
+    assert cover_probe(tr, foot, replace(ego, standstill=True), sensors, 1 / 30, CAM) is None
 
 
 HEAD = np.array([445.0, 280.0])   # px, a head's centre in the previous frame
@@ -182,8 +206,7 @@ BAND = (425.0, 270.0, 465.0, 290.0)
 
 
 def _count(prev: np.ndarray, cur: np.ndarray, cfg: Config) -> float:
-    return course_points(prev, cur, BAND, OBJECT_M, np.eye(3), T_M, CAM, cfg.flow,
-                         cfg.tracking.coast_course_ratio)[0]
+    return course_points(prev, cur, BAND, OBJECT_M, np.eye(3), T_M, cfg)[0]
 
 
 def test_course_points_see_a_head_that_keeps_its_bearing(default_config: Config) -> None:
@@ -194,12 +217,11 @@ def test_course_points_see_a_head_that_keeps_its_bearing(default_config: Config)
     walking = _count(*head_pair(HEAD), default_config)
     stopped = _count(*head_pair(magnify(HEAD, OBJECT_M)), default_config)
     wall = _count(*head_pair(None), default_config)
-    need = default_config.tracking.coast_course_points
+    need = lost_tracks.COURSE_POINTS
     assert walking >= 3 * need
     assert stopped < need and wall < need
     # the points that see it lie around its column
-    column = course_points(*head_pair(HEAD), BAND, OBJECT_M, np.eye(3), T_M, CAM,
-                           default_config.flow, default_config.tracking.coast_course_ratio)[1]
+    column = course_points(*head_pair(HEAD), BAND, OBJECT_M, np.eye(3), T_M, default_config)[1]
     assert column == pytest.approx(HEAD[0], abs=2.0)
     # the band's grid: about every HEAD_GRID_PX (1.5 px), inside the image
     pts = band_points(BAND, CAM.width, CAM.height)
@@ -213,7 +235,7 @@ def test_unmeasurable_band_gives_no_count(default_config: Config) -> None:
     prev, cur = head_pair(HEAD)
     out = (700.0, 500.0, 760.0, 600.0)
     assert all(math.isnan(v) for v in course_points(prev, cur, out, OBJECT_M, np.eye(3), T_M,
-                                                    CAM, default_config.flow, 0.25))
+                                                    default_config))
 
 
 def test_head_band_lies_at_the_top_of_an_object_of_its_height() -> None:
@@ -227,19 +249,22 @@ def test_head_band_lies_at_the_top_of_an_object_of_its_height() -> None:
 
 def test_coasted_course_from_a_coasted_track(default_config: Config) -> None:
     """From a coasted image track (bottom at row 330, 10 m: a 1.0 m object's top at row 260,
-    the head band 255-295) and its foot point: the count with the image pair; NaN without the
-    pair, at a standstill, or without a known height."""
-    prev, cur = head_pair(HEAD)
+    the head band 255-295) and its foot point: the count with the flow at its probe; NaN
+    without a measured flow; no probe at a standstill or without a known height."""
     tr, ego, sensors = coasted_at(445.0, 326.0)
     foot = np.array([0.5, 1.2, OBJECT_M])
-    args = (ego, sensors, 1.0 / 30.0, default_config.flow, CAM, 0.25)
-    count, column = coasted_course(tr, foot, 1.0, (prev, cur), *args)
-    assert count >= 9 and column == pytest.approx(HEAD[0], abs=2.0)
-    assert coasted_course(tr, foot, 1.0, head_pair(magnify(HEAD, OBJECT_M)), *args)[0] < 3
-    assert math.isnan(coasted_course(tr, foot, 1.0, None, *args)[0])
-    assert math.isnan(coasted_course(tr, foot, 0.0, (prev, cur), *args)[0])
-    halt = replace(ego, standstill=True)
-    assert math.isnan(coasted_course(tr, foot, 1.0, (prev, cur), halt, *args[1:])[0])
+    p = course_probe(tr, foot, 1.0, ego, sensors, 1.0 / 30.0, CAM)
+    assert p is not None
+
+    def count(pair: tuple[np.ndarray, np.ndarray]) -> tuple[float, float]:
+        return course_count(p, measured(*pair, p.points, p.R, default_config), CAM)
+
+    n, column = count(head_pair(HEAD))
+    assert n >= 9 and column == pytest.approx(HEAD[0], abs=2.0)
+    assert count(head_pair(magnify(HEAD, OBJECT_M)))[0] < 3
+    assert math.isnan(course_count(p, None, CAM)[0])
+    assert course_probe(tr, foot, 0.0, ego, sensors, 1 / 30, CAM) is None
+    assert course_probe(tr, foot, 1.0, replace(ego, standstill=True), sensors, 1 / 30, CAM) is None
 
 
 # stop-behind seed 2's head band: walking on hidden, then slowing down (a few points background)
@@ -247,66 +272,62 @@ STOP_BEHIND_WALKED = (17.0, 44.0, 44.0, 24.0, 12.0, 27.0, 36.0, 73.0, 50.0, 43.0
 STOP_BEHIND_SLOWED = (1.0, 3.0, 2.0, 6.0, 4.0, 4.0, 0.0, 15.0, 6.0)
 
 
-def _course(counts: tuple[float, ...], cfg: Config) -> LostTrack:
+def _course(counts: tuple[float, ...]) -> LostTrack:
     lt = LostTrack(id=1, cues=TrackCues())
     for c in counts:
-        lt = lt.with_course(c, cfg)
+        lt = lt.with_course(c)
     return lt
 
 
 def test_a_lost_track_is_off_course_for_good_on_the_median_of_its_counts(
-        default_config: Config) -> None:
+        monkeypatch: pytest.MonkeyPatch) -> None:
     """Counts of a head band (need 3, median over 5 frames): walking on (the median stays 3
     or more, one empty frame or a short run of them does not decide), then stopped (the
     median falls below 3): off course, and it stays so when the band later catches something
     far that keeps its bearing. A head never seen on course (an occluder taller than the
     object) does not make it off course."""
-    cfg = default_config.with_overrides({"tracking": {"coast_cover_frames": 5,
-                                                      "coast_course_points": 3,
-                                                      "coast_course_fraction": 0.0}})
+    assert (lost_tracks.COVER_FRAMES, lost_tracks.COURSE_POINTS) == (5, 3)
+    monkeypatch.setattr(lost_tracks, "COURSE_FRACTION", 0.0)
     walking = (17.0, 44.0, 0.0, 12.0, 6.0, 3.0, 0.0, 4.0)
-    assert not _course(walking, cfg).off_course and _course(walking, cfg).seen_on_course
-    stopped = _course((*walking, 0.0, 1.0, 5.0, 0.0), cfg)
+    assert not _course(walking).off_course and _course(walking).seen_on_course
+    stopped = _course((*walking, 0.0, 1.0, 5.0, 0.0))
     assert stopped.off_course
-    assert _course((*walking, 0.0, 1.0, 5.0, 0.0, 18.0, 23.0, 16.0, 30.0, 40.0), cfg).off_course
+    assert _course((*walking, 0.0, 1.0, 5.0, 0.0, 18.0, 23.0, 16.0, 30.0, 40.0)).off_course
     assert len(stopped.course) == 5                                   # only the last 5 are kept
-    assert not _course((20.0, 30.0, 0.0, 1.0, math.nan, 0.0), cfg).off_course  # 4 measured: too few to say
-    assert not _course((math.nan,) * 8, cfg).off_course               # never measured: as before
-    never = _course((0.0, 1.0, 0.0, 2.0, 0.0, 0.0, 1.0), cfg)        # the head never showed
+    assert not _course((20.0, 30.0, 0.0, 1.0, math.nan, 0.0)).off_course  # 4 measured: too few to say
+    assert not _course((math.nan,) * 8).off_course               # never measured: as before
+    never = _course((0.0, 1.0, 0.0, 2.0, 0.0, 0.0, 1.0))        # the head never showed
     assert not never.off_course and not never.seen_on_course
-    off = cfg.with_overrides({"tracking": {"coast_course_points": 0}})
-    assert not _course((*walking, 0.0, 0.0, 0.0, 0.0, 0.0), off).off_course   # the test off
 
 
-def test_off_course_also_below_a_fraction_of_the_highest_count(default_config: Config) -> None:
+def test_off_course_also_below_a_fraction_of_the_highest_count(
+        monkeypatch: pytest.MonkeyPatch) -> None:
     """Stop-behind seed 2 with the head's bearing fed to the coasted state: 30-70 points while
     the pedestrian walked on hidden, then 1-8 once it slowed down, a few of them background.
     Against 3 points alone it would stay on course; against a quarter of its highest median
     (50: 12.5) it is off course at the third frame of the slow-down."""
     walked, slowed = STOP_BEHIND_WALKED, STOP_BEHIND_SLOWED
-    base = {"coast_cover_frames": 5, "coast_course_points": 3}
-    points = default_config.with_overrides({"tracking": {**base, "coast_course_fraction": 0.0}})
-    fraction = default_config.with_overrides({"tracking": {**base, "coast_course_fraction": 0.25}})
-    assert not _course((*walked, *slowed), points).off_course
-    assert not _course((*walked, *slowed[:2]), fraction).off_course
-    assert _course((*walked, *slowed[:3]), fraction).off_course
-    assert _course((*walked, *slowed[:3]), fraction).course_peak == 50.0
+    assert lost_tracks.COURSE_FRACTION == 0.25
+    assert not _course((*walked, *slowed[:2])).off_course
+    assert _course((*walked, *slowed[:3])).off_course
+    assert _course((*walked, *slowed[:3])).course_peak == 50.0
+    monkeypatch.setattr(lost_tracks, "COURSE_FRACTION", 0.0)
+    assert not _course((*walked, *slowed)).off_course
 
 
 def test_a_head_counted_at_the_backgrounds_level_is_never_seen_and_never_lost(
-        default_config: Config) -> None:
+        monkeypatch: pytest.MonkeyPatch) -> None:
     """Nearside seed 2, the pedestrian 27 m away: its head band counted 4, 5, 6, 2, 2, 6, 4, 1
     (background in the band alone counts 3-6). Seen on course at a median of 4, it was off
     course at the first median of 2 and its correct coasted warning (TTC 2.6 s, truth 2.67 s)
-    was dropped. With coast_course_seen_points 8 such counts never make it seen, so it coasts
-    on; a head counted 12-73 (stop-behind seed 2 walking hidden) is seen, and lost when the
-    count falls to the background's."""
-    base = {"coast_cover_frames": 5, "coast_course_points": 3, "coast_course_fraction": 0.25}
-    old = default_config.with_overrides({"tracking": {**base, "coast_course_seen_points": 0}})
-    cfg = default_config.with_overrides({"tracking": {**base, "coast_course_seen_points": 8}})
+    would be dropped. With ``COURSE_SEEN_POINTS`` 8 such counts never make it seen, so it
+    coasts on; a head counted 12-73 (stop-behind seed 2 walking hidden) is seen, and lost when
+    the count falls to the background's."""
+    assert lost_tracks.COURSE_SEEN_POINTS == 8
     far_head = (4.0, 5.0, 6.0, 2.0, 2.0, 6.0, 4.0, 1.0)
-    assert _course(far_head, old).off_course                         # the fault
-    lt = _course(far_head, cfg)
+    lt = _course(far_head)
     assert not lt.seen_on_course and not lt.off_course
-    assert _course(STOP_BEHIND_WALKED, cfg).seen_on_course
-    assert _course((*STOP_BEHIND_WALKED, *STOP_BEHIND_SLOWED[:3]), cfg).off_course
+    assert _course(STOP_BEHIND_WALKED).seen_on_course
+    assert _course((*STOP_BEHIND_WALKED, *STOP_BEHIND_SLOWED[:3])).off_course
+    monkeypatch.setattr(lost_tracks, "COURSE_SEEN_POINTS", 0)
+    assert _course(far_head).off_course                          # seen at the background's level

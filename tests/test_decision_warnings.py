@@ -6,7 +6,14 @@ import numpy as np
 import pytest
 
 from appliance.config import Config, WarningConfig
-from appliance.decision.warnings import TrackThreat, WarningState, pool_covered, warning_step
+from appliance.decision.assess import TrackThreat
+from appliance.decision.warnings import (
+    FAST_MOVER_M_S,
+    HIDDEN_MIN_PROBABILITY,
+    WarningState,
+    pool_covered,
+    warning_step,
+)
 from appliance.messages import TrackReport, WarningEvent
 
 FPS = 30.0
@@ -21,13 +28,14 @@ def threat(tid: int, ttc: float | None, on_course: bool = True, wide: bool | Non
                        on_course_wide=on_course if wide is None else wide)
 
 
-def run(cfg: WarningConfig, frames: list[tuple[TrackThreat, ...]]
+def run(cfg: WarningConfig, frames: list[tuple[TrackThreat, ...]], hidden_max_level: int = 2
         ) -> tuple[list[int], list[WarningEvent]]:
     state = WarningState()
     levels: list[int] = []
     events: list[WarningEvent] = []
     for k, threats in enumerate(frames):
-        state, ev, _ = warning_step(state, threats, k / FPS, k, cfg)
+        state, ev, _, _ = warning_step(state, threats, k / FPS, k, cfg,
+                                       hidden_max_level=hidden_max_level)
         levels.append(state.level)
         events.extend(ev)
     return levels, events
@@ -115,7 +123,7 @@ def test_a_track_released_off_its_course_is_held_only_for_hold_s(default_config:
     state, events = WarningState(), []
     for k, threats in enumerate(frames):
         released = frozenset({7}) if k >= 6 else frozenset()
-        state, ev, _ = warning_step(state, threats, k / FPS, k, cfg, released=released)
+        state, ev, _, _ = warning_step(state, threats, k / FPS, k, cfg, released=released)
         events.extend(ev)
     assert [e.level for e in held] == [1, 0] and [e.level for e in events] == [1, 0]
     assert held[-1].t >= 5 / FPS + 2.8 - 5 / FPS - 1e-9  # held until the contact was due
@@ -139,14 +147,14 @@ def test_persistence_looks_ahead_by_its_window(default_config: Config) -> None:
     issued = []
     for k in range(60):
         ttc = 2.5 - k / FPS
-        state, ev, _ = warning_step(state, (threat(1, ttc),), k / FPS, k, cfg, frame_dt=1 / FPS)
+        state, ev, _, _ = warning_step(state, (threat(1, ttc),), k / FPS, k, cfg, frame_dt=1 / FPS)
         issued += [(e.level, ttc) for e in ev if e.level == 2]
     assert len(issued) == 1 and 2.0 - 1 / FPS < issued[0][1] <= 2.0 + 1e-9
     # without the look-ahead it comes (persistence - 1) frames late
     state, late = WarningState(), []
     for k in range(60):
         ttc = 2.5 - k / FPS
-        state, ev, _ = warning_step(state, (threat(1, ttc),), k / FPS, k, cfg)
+        state, ev, _, _ = warning_step(state, (threat(1, ttc),), k / FPS, k, cfg)
         late += [ttc for e in ev if e.level == 2]
     assert late[0] == pytest.approx(issued[0][1] - 2 / FPS)
 
@@ -164,10 +172,10 @@ def test_weak_or_static_tracks_raise_no_level(default_config: Config) -> None:
     # a hidden track assessed from its coasted state has its own, lower bar (its region was
     # thinned out by the occluder before it was lost)
     hidden = TrackThreat(replace(threat(1, 1.0).report, probability=0.6), True, True, coasted=True)
-    assert cfg.coast_min_probability < 0.6 < cfg.min_probability
+    assert HIDDEN_MIN_PROBABILITY < 0.6 < cfg.min_probability
     levels, events = run(cfg, [(hidden,)] * 10)
     assert [e.level for e in events] == [2]
-    flat = TrackThreat(threat(1, 1.0).report, True, True, upright=False)   # a strip of road
+    flat = TrackThreat(threat(1, 1.0).report, True, True, height_m=0.1)   # a strip of road
     levels, events = run(cfg, [(flat,)] * 10)
     assert events == [] and max(levels) == 0
     # once raised, a warning is held for a track that stops (a pedestrian standing in the path)
@@ -177,20 +185,21 @@ def test_weak_or_static_tracks_raise_no_level(default_config: Config) -> None:
 
 def test_a_fast_mover_needs_no_eq20_probability(default_config: Config) -> None:
     """A lead car at the epipole carries an eq. 20 probability of 0.5-0.7: a track moving over
-    ground at fast_mover_m_s or more (``fast``) raises its level anyway; a slow one with the
-    same probability does not, nor a fast one that is not moving, off course or flat."""
+    ground at ``FAST_MOVER_M_S`` or more raises its level anyway; a slow one with the same
+    probability does not, nor a fast one that is not moving, off course or flat."""
     from dataclasses import replace
 
     cfg = default_config.warning
     report = replace(threat(1, 1.0).report, probability=0.55)
     assert report.probability < cfg.min_probability
-    levels, events = run(cfg, [(TrackThreat(report, True, True, fast=True),)] * 10)
+    fast = TrackThreat(report, True, True, speed_m_s=FAST_MOVER_M_S + 0.1)
+    levels, events = run(cfg, [(fast,)] * 10)
     assert [e.level for e in events] == [2]
-    levels, events = run(cfg, [(TrackThreat(report, True, True),)] * 10)
+    slow = replace(fast, speed_m_s=FAST_MOVER_M_S - 0.1)
+    levels, events = run(cfg, [(slow,)] * 10)
     assert events == [] and max(levels) == 0
-    fast = TrackThreat(report, True, True, fast=True)
     for other in (replace(fast, moving=False), replace(fast, on_course=False, on_course_wide=False),
-                  replace(fast, upright=False)):
+                  replace(fast, height_m=0.1)):
         levels, events = run(cfg, [(other,)] * 10)
         assert events == [] and max(levels) == 0, other
 
@@ -218,18 +227,57 @@ def test_a_track_covering_another_passes_with_the_higher_probability(default_con
     assert pool_covered([feet, beside])[0].evidence is None
 
 
-def test_a_hidden_track_raises_at_most_coast_max_level(default_config: Config) -> None:
-    """``coast_max_level`` 1: a coasted track only cautions; a level 2 issued while the track was
-    seen is still held when it hides behind something."""
+def test_a_hidden_track_raises_at_most_hidden_max_level(default_config: Config) -> None:
+    """``hidden.max_level`` 1: a coasted track only cautions; a level 2 issued while the track
+    was seen is still held when it hides behind something."""
     from dataclasses import replace
 
+    cfg = default_config.warning
     seen = threat(1, 1.0)
     hidden = TrackThreat(replace(seen.report, probability=0.6), True, True, coasted=True)
-    assert [e.level for e in run(default_config.warning, [(hidden,)] * 10)[1]] == [2]
-    cfg = default_config.with_overrides({"warning": {"coast_max_level": 1}}).warning
-    levels, events = run(cfg, [(hidden,)] * 10)
+    assert [e.level for e in run(cfg, [(hidden,)] * 10)[1]] == [2]
+    levels, events = run(cfg, [(hidden,)] * 10, hidden_max_level=1)
     assert [e.level for e in events] == [1] and levels[-1] == 1
-    levels, events = run(cfg, [(seen,)] * 4 + [(hidden,)] * 10)
+    levels, events = run(cfg, [(seen,)] * 4 + [(hidden,)] * 10, hidden_max_level=1)
     assert [e.level for e in events] == [2] and levels[-1] == 2
-    cfg0 = default_config.with_overrides({"warning": {"coast_max_level": 0}}).warning
-    assert run(cfg0, [(hidden,)] * 10)[1] == []
+    assert run(cfg, [(hidden,)] * 10, hidden_max_level=0)[1] == []
+
+
+def reasons(cfg: WarningConfig, frames: list[tuple[TrackThreat, ...]]) -> list[dict[int, str]]:
+    state = WarningState()
+    out = []
+    for k, threats in enumerate(frames):
+        state, _, _, why = warning_step(state, threats, k / FPS, k, cfg, frame_dt=1 / FPS)
+        out.append(why)
+    return out
+
+
+def test_every_track_says_why_it_warns_or_not(default_config: Config) -> None:
+    """The reason of each track (``tracks.jsonl``): the first check it fails, in the order a
+    driver would ask (does it move, is it a road user, is it real, is it coming at us, how
+    soon), else how far its indication has persisted, else its level."""
+    from dataclasses import replace
+
+    cfg = default_config.warning   # caution 3.0 s, warning 2.0 s, persistence 3, min p 0.75
+    base = threat(1, 1.0)
+    cases = {
+        "not moving over ground": replace(base, moving=False),
+        "box 0.10 m tall, below 0.30 m": replace(base, height_m=0.1),
+        "probability 0.50 below 0.75": replace(base, report=replace(base.report, probability=0.5)),
+        "path misses corridor by 0.9 m": replace(base, on_course=False, on_course_wide=False,
+                                                 miss_m=0.94),
+        "no time to collision": threat(1, None),
+        "ttc 3.4 s above 3.1 s": threat(1, 3.4),   # the caution threshold looks 2 frames ahead
+    }
+    for why, th in cases.items():
+        assert reasons(cfg, [(th,)] * 5)[-1] == {1: why}
+    # persistence, then the level; a second track below the warned one says so
+    got = reasons(cfg, [(threat(1, 1.0), threat(2, 2.5))] * 4)
+    assert got[0] == {1: "caution indicated 1 of 3 frames", 2: "caution indicated 1 of 3 frames"}
+    assert got[2] == {1: "warning", 2: "caution, track 1 warned"}
+    # a hidden track's reason says it is hidden
+    hidden = replace(threat(3, 1.0), coasted=True)
+    assert reasons(cfg, [(hidden,)] * 3)[-1] == {3: "warning, hidden"}
+    # the warned track whose TTC rises past the threshold is held for hold_s: "warning, held"
+    got = reasons(cfg, [(threat(1, 1.0),)] * 3 + [(threat(1, 5.0),)] * 2)
+    assert got[-1] == {1: "warning, held"}

@@ -9,7 +9,7 @@ position, size, number of correspondences N, the weighted mean motion
 Box of a cluster: the labelled region is the *blurred and dilated* probability,
 so it is larger than the object by the Gaussian window and the dilation. The
 box reported (``bbox``) therefore spans the region's correspondences whose own
-particle weight is at least ``member_weight`` (the particles that actually
+particle weight is at least ``MEMBER_WEIGHT`` (the particles that actually
 measured independent motion), shrunk by half the Lucas-Kanade window (the
 particles' halo, :func:`shrink`); only when fewer than two such particles exist
 is the region's box used. ``region_bbox`` keeps the region's box.
@@ -28,6 +28,8 @@ from appliance.messages import ParticleSet
 
 FloatArray = NDArray[np.float64]
 Box = tuple[float, float, float, float]
+
+MEMBER_WEIGHT = 0.5   # a particle of a region with at least this weight spans the object's box
 
 
 @dataclass(frozen=True)
@@ -167,7 +169,7 @@ def find_clusters(prob: NDArray[np.float32], scale: int, particles: ParticleSet,
         region = (float(x0 * scale), float(y0 * scale),
                   float(min((x0 + w) * scale, width)), float(min((y0 + h) * scale, height)))
         mpos, mflow, ms, mw = pos[members], flow[members], s_all[members], weight[members]
-        moving = mw >= cfg.member_weight
+        moving = mw >= MEMBER_WEIGHT
         if np.count_nonzero(moving) >= 2:
             extent = _box_of(mpos[moving])
             bbox = shrink(extent, halo_px)

@@ -1,10 +1,9 @@
 """Velocity over ground across the line of sight from a track's sightings over a window.
 
 Why: at range the bearing is far more precise than the range from the ground contact (1 px of
-the foot row is about 1.5 m at 40 m). On pedestrian_crossing_nearside the contacts' range was
-10-12 % short early and 5 % short later; that change of ratio alone shrank the pedestrian's
-lateral displacement, and the 3-D filter said 0.4-0.6 m/s (with +2.5 m/s of range rate) for an
-adult crossing at 1.39 m/s when a parked car hid it. A straight line through the bearings
+the foot row is about 1.5 m at 40 m). A contact's range that is 10-12 % short early and 5 %
+short later shrinks a pedestrian's lateral displacement: from contacts alone, an adult crossing
+at 1.39 m/s came out at 0.4-0.6 m/s (with +2.5 m/s of range rate). A straight line through the bearings
 (the rate) lags when the rate changes within the window: for a pedestrian passing 17 m ahead
 it doubles within 1 s. So each sighting's ray is cut at the range the 3-D state had then and a
 robust line goes through those points, in an odometry frame so that ego turns are not motion.
@@ -22,11 +21,14 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.stats import theilslopes
 
-from appliance.config import Config
 from appliance.decision.ground_state import GroundTrack, ego_step, velocity_update
 
 FloatArray = NDArray[np.float64]
 Sighting = tuple[float, float, float, float, float]
+
+MIN_FRAMES = 8             # sightings the fit needs
+MIN_WIDTH_FRACTION = 0.6   # a sighting narrower than this share of the window's median width (cut
+                           # by an occluder, thinned out) is left out of the fit
 
 
 def odometry_step(odo: tuple[float, float, float], speed: float, yaw_rate: float, dt: float
@@ -108,25 +110,21 @@ def fit_crossing_velocity(sightings: NDArray[np.floating], g: GroundTrack,
 
 
 def windowed_crossing_update(g: GroundTrack, sightings: tuple[Sighting, ...],
-                             odo: tuple[float, float, float], cfg: Config) -> GroundTrack:
+                             odo: tuple[float, float, float], camera_xy: tuple[float, float]
+                             ) -> GroundTrack:
     """The 3-D state after a velocity update across the line of sight from the track's
-    sightings over the last ``bearing_window_s`` (:func:`fit_crossing_velocity`).
+    sightings over the window (:func:`fit_crossing_velocity`).
 
     At range the bearing is far more precise than the range: 1 px of the foot row is about
     1.5 m at 40 m, and a range error that changes along the track shrinks the lateral
     displacement of the contacts (a pedestrian crossing at 1.39 m/s came out at 0.4-0.6 m/s
     from contacts alone). The same window is fitted every frame, so its std is inflated by
-    sqrt(frames) to count its information about once; ``bearing_rate_std_rad_s`` times the
-    range is its floor.
+    sqrt(frames) to count its information about once.
     """
-    gc = cfg.ground
-    if len(sightings) < gc.bearing_min_frames:
+    if len(sightings) < MIN_FRAMES:
         return g
-    cv = fit_crossing_velocity(np.asarray(sightings, dtype=np.float64), g, odo,
-                               (cfg.mount.x_m, cfg.mount.y_m), gc.bearing_min_width_fraction,
-                               gc.bearing_min_frames)
+    cv = fit_crossing_velocity(np.asarray(sightings, dtype=np.float64), g, odo, camera_xy,
+                               MIN_WIDTH_FRACTION, MIN_FRAMES)
     if cv is None:
         return g
-    rng = float(np.hypot(g.x[0] - cfg.mount.x_m, g.x[1] - cfg.mount.y_m))
-    std = max(cv.std, gc.bearing_rate_std_rad_s * rng) * math.sqrt(cv.frames)
-    return velocity_update(g, cv.tangent, cv.value, std)
+    return velocity_update(g, cv.tangent, cv.value, cv.std * math.sqrt(cv.frames))

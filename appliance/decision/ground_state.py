@@ -18,7 +18,7 @@ path from its first frames.
 Refined pitch: the body pitch b (rad, nose down positive) that CAN cannot see
 (road bumps) is the accumulated difference between the refined and the prior
 inter-frame rotations, mapped from camera axes to the vehicle's y axis; it decays
-towards zero with ``pitch_decay_s`` so that it cannot drift. The camera's pitch
+towards zero with ``PITCH_DECAY_S`` so that it cannot drift. The camera's pitch
 for back-projection is then ``mount.pitch_rad + b`` with pan and tilt from the PTU.
 """
 
@@ -32,7 +32,7 @@ from filterpy.common import Q_discrete_white_noise
 from filterpy.kalman import predict, update
 from numpy.typing import NDArray
 
-from appliance.config import GroundConfig, MountConfig
+from appliance.config import MountConfig
 from appliance.messages import EgoMotion, SensorSample
 from appliance.vision.geometry import PinholeCamera, vehicle_from_camera_rotation
 
@@ -40,6 +40,25 @@ FloatArray = NDArray[np.float64]
 
 # a ray must point at least this far below the horizon (dz per unit length) to hit the road
 MIN_DOWN = 1e-4
+PITCH_DECAY_S = 1.0  # s, time constant pulling the refined body pitch back to zero
+
+
+@dataclass(frozen=True)
+class GroundModel:
+    """Parameters of the ground contact and the 3-D filter. ``contact_std_px`` and
+    ``max_range_m`` come from the ground cue's table (``[cue.ground]``); the rest are the
+    filter's own constants."""
+
+    contact_std_px: float = 3.0          # px, std of the contact in the image, u and v
+    max_range_m: float = 60.0            # m, a contact further from the camera is not used
+    pitch_std_rad: float = 0.003         # rad, std of the refined camera pitch in the back-projection
+    process_accel_m_s2: float = 1.0      # m/s^2, process noise of the velocity over ground
+    accel_std_m_s2: float = 3.0          # m/s^2, spread of the acceleration over ground (Singer model)
+    accel_time_constant_s: float = 2.0   # s, how long such an acceleration lasts
+    accel_min_speed_m_s: float = 5.0     # m/s, slower objects (pedestrians) get no acceleration
+    initial_velocity_std_m_s: float = 8.0  # m/s, initial std of the velocity over ground
+    gate_sigmas: float = 3.5             # a contact further than this (Mahalanobis) is an outlier
+    memory_s: float = 1.0                # s, fading memory: older contacts count less (0: none)
 
 
 @dataclass(frozen=True)
@@ -71,8 +90,7 @@ def ground_in_camera(pose: CameraPose, position: NDArray[np.floating]) -> FloatA
     return np.asarray(pose.rotation().T @ (p - np.asarray(pose.position)))
 
 
-def update_body_pitch(b: float, ego: EgoMotion, pose_prev: CameraPose, dt: float,
-                      cfg: GroundConfig) -> float:
+def update_body_pitch(b: float, ego: EgoMotion, pose_prev: CameraPose, dt: float) -> float:
     """Body pitch (rad, nose down +) after this frame's refined rotation.
 
     The refined minus the prior rotation (camera axes, point rotation) is the
@@ -80,9 +98,9 @@ def update_body_pitch(b: float, ego: EgoMotion, pose_prev: CameraPose, dt: float
     component (with a minus: a nose-down body rotation shows up as +r_x for a
     level camera) is the body pitch increment. Not integrated when the
     refinement kept its prior (``confident`` False). Decays with
-    ``pitch_decay_s``.
+    ``PITCH_DECAY_S``.
     """
-    decay = math.exp(-max(dt, 0.0) / cfg.pitch_decay_s)
+    decay = math.exp(-max(dt, 0.0) / PITCH_DECAY_S)
     if not ego.confident:
         return b * decay
     d = np.asarray(ego.rotation, dtype=np.float64) - np.asarray(ego.prior_rotation, float)
@@ -145,7 +163,7 @@ def foot_halo_shift(range_m: float, travel_m: float, fy: float, height_m: float,
 
 
 def ground_contact(camera: PinholeCamera, uv: tuple[float, float], pose: CameraPose,
-                   cfg: GroundConfig) -> GroundContact | None:
+                   cfg: GroundModel) -> GroundContact | None:
     """The road point under pixel ``uv`` with its covariance, or None when it is unusable.
 
     The covariance propagates ``contact_std_px`` in u and v and ``pitch_std_rad``
@@ -175,7 +193,7 @@ def ground_contact(camera: PinholeCamera, uv: tuple[float, float], pose: CameraP
 class GroundTrack:
     """State ``[x, y, vx, vy]`` (m, m/s): position in the current vehicle frame and the
     object's velocity over ground expressed in it; P (4, 4). With the acceleration model
-    (``ground.accel_std_m_s2`` > 0) the state is ``[x, y, vx, vy, ax, ay]`` and P (6, 6): the
+    (``accel_std_m_s2`` > 0) the state is ``[x, y, vx, vy, ax, ay]`` and P (6, 6): the
     acceleration over ground too (m/s^2). t_update: time of the last ground contact (s);
     updates: how many contacts it has taken; rejected: outliers in a row. P_measured: P
     after the last measurement (a contact, a velocity or bearing update); a prediction leaves
@@ -226,7 +244,7 @@ def h_position(n: int) -> FloatArray:
 
 
 
-def ground_init(contact: GroundContact, t: float, cfg: GroundConfig,
+def ground_init(contact: GroundContact, t: float, cfg: GroundModel,
                 prior: tuple[FloatArray, FloatArray] | None = None) -> GroundTrack:
     """A new 3-D state at ``contact``; velocity from ``prior`` (mean (2,), covariance
     (2, 2), m/s over ground) or 0 +- ``initial_velocity_std_m_s``; with the acceleration
@@ -271,7 +289,7 @@ def line_of_sight(z: FloatArray, bearing_rate: float, speed: float, yaw_rate: fl
 
 
 def velocity_prior(z: FloatArray, bearing_rate: float, speed: float, yaw_rate: float,
-                   camera_xy: tuple[float, float], cfg: GroundConfig,
+                   camera_xy: tuple[float, float], cfg: GroundModel,
                    bearing_rate_std: float = 0.01) -> tuple[FloatArray, FloatArray]:
     """Velocity over ground (mean, covariance) of an object at ``z`` (m, vehicle frame) whose
     bearing from the camera turns at ``bearing_rate`` (rad/s, vehicle frame).
@@ -374,7 +392,7 @@ def ego_step(speed: float, yaw_rate: float, dt: float) -> tuple[FloatArray, Floa
     return Rt, d
 
 
-def ground_predict(g: GroundTrack, dt: float, sensors: SensorSample, cfg: GroundConfig,
+def ground_predict(g: GroundTrack, dt: float, sensors: SensorSample, cfg: GroundModel,
                    steady: bool = False) -> GroundTrack:
     """Move the state by ``dt`` s: the object at constant velocity over ground, the frame with
     the ego vehicle (CAN speed and yaw rate): p' = Rt (p + v dt - d), v' = Rt v.
@@ -447,7 +465,7 @@ def innovation_sigmas(g: GroundTrack, contact: GroundContact) -> float:
     return float(math.sqrt(max(float(y @ np.linalg.solve(S, y)), 0.0)))
 
 
-def ground_absorb(g: GroundTrack | None, contact: GroundContact, t: float, cfg: GroundConfig,
+def ground_absorb(g: GroundTrack | None, contact: GroundContact, t: float, cfg: GroundModel,
                   prior: tuple[FloatArray, FloatArray] | None = None) -> GroundTrack:
     """Start, update or (outlier) skip: a contact further than ``gate_sigmas`` from the
     prediction is skipped once the state has 3 contacts; 5 outliers in a row restart it

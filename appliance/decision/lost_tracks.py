@@ -2,8 +2,8 @@
 
 A confirmed track the image tracker drops while it moves over ground becomes a
 :class:`LostTrack`: its 3-D state coasts at constant velocity over ground (ego motion
-removed) for ``tracking.reacquire_s``; a new track whose first ground contact falls in its
-gate continues it under its id (:func:`reacquire`). With ``tracking.coast_warn_s`` it is
+removed) for ``hidden.keep_s``; a new track whose first ground contact falls in its
+gate continues it under its id (:func:`reacquire`). For ``hidden.warn_s`` it is
 also assessed from the coasted state (:func:`coasted_track`) while something nearer covers
 it (:meth:`LostTrack.covered`) and until its head, where it shows above the occluder, is seen
 off the coasted course (:meth:`LostTrack.with_course`; occlusion.py).
@@ -15,27 +15,36 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from appliance.config import Config
+from appliance.config import HiddenConfig
+from appliance.decision.cues import TrackCues
 from appliance.decision.ground_state import (
     CameraPose,
     GroundContact,
+    GroundModel,
     ground_in_camera,
     ground_predict,
     innovation_sigmas,
 )
-from appliance.decision.track_cues import TrackCues
 from appliance.decision.tracking import ImageTrack, TrackerState
 from appliance.messages import SensorSample
 from appliance.vision.geometry import FloatArray, PinholeCamera
+
+REACQUIRE_GATE_SIGMAS = 3.0  # a new track continues a lost one whose coasted position is this close
+REACQUIRE_GATE_M = 5.0       #   (Mahalanobis) and at most this far (m), whichever is tighter
+COVER_RATIO = 1.15           # covered: the median cover ratio (occlusion.cover_ratio) is at least this
+COVER_FRAMES = 5             # frames of that median, and of the head band's counts
+COURSE_POINTS = 3            # head seen on course: the median count of its band's low-flow points is at
+COURSE_FRACTION = 0.25       #   least this, and this share of its highest median so far
+COURSE_SEEN_POINTS = 8       # ... and it counts as seen there only from this median on (background
+                             #   alone counts 3-6)
 
 
 @dataclass(frozen=True)
 class LostTrack:
     """A confirmed track the image tracker lost while its 3-D state showed independent motion
-    (or any, ``reacquire_moving_only`` false; an occlusion, e.g. by a parked car): its public id
-    and cues, the 3-D state coasting at
+    (an occlusion, e.g. by a parked car): its public id and cues, the 3-D state coasting at
     constant velocity over ground until a new track's first ground contact continues it or
-    ``reacquire_s`` has passed since its last contact."""
+    ``hidden.keep_s`` has passed since its last contact."""
 
     id: int
     cues: TrackCues
@@ -46,48 +55,43 @@ class LostTrack:
     course_peak: float = 0.0         # the highest median count so far
     off_course: bool = False         # latched once its head, seen on course, was no longer
 
-    def covered(self, cfg: Config) -> bool:
-        """Whether something nearer hides it: the median of its last ``coast_cover_frames``
-        measured cover ratios is at least ``coast_cover_ratio`` (always, with that 0)."""
-        if cfg.tracking.coast_cover_ratio <= 0.0:
-            return True
-        last = np.asarray(self.cover[-cfg.tracking.coast_cover_frames:], dtype=np.float64)
+    def covered(self) -> bool:
+        """Whether something nearer hides it: the median of its last ``COVER_FRAMES``
+        measured cover ratios is at least ``COVER_RATIO``."""
+        last = np.asarray(self.cover[-COVER_FRAMES:], dtype=np.float64)
         last = last[np.isfinite(last)]
-        return bool(last.size) and float(np.median(last)) >= cfg.tracking.coast_cover_ratio
+        return bool(last.size) and float(np.median(last)) >= COVER_RATIO
 
-    def with_course(self, count: float, cfg: Config) -> LostTrack:
-        """This lost track with one more head-band count (``occlusion.coasted_course``).
+    def with_course(self, count: float) -> LostTrack:
+        """This lost track with one more head-band count (``occlusion.course_count``).
 
-        While the median of its last ``coast_cover_frames`` measured counts is at least
-        ``coast_course_points`` and ``coast_course_fraction`` of its highest median so far (a
+        While the median of its last ``COVER_FRAMES`` measured counts is at least
+        ``COURSE_POINTS`` and ``COURSE_FRACTION`` of its highest median so far (a
         head seen closer covers more points), its head keeps its bearing above the occluder;
-        it counts as seen there once the median also reaches ``coast_course_seen_points`` (a
+        it counts as seen there once the median also reaches ``COURSE_SEEN_POINTS`` (a
         few points of background alone count 3-6). Once it was seen, and the median then
         falls below the first bar, the track is off course for good: what showed of it
         stopped keeping its bearing (a pedestrian who stopped behind a parked car), and its
         coasted state, which cannot see that, is no longer assessed. A track whose head was
         never seen (an occluder taller than it, or too far to count above the background)
         coasts as before."""
-        frames = cfg.tracking.coast_cover_frames
-        course = (*self.course[1 - frames:], count)
+        course = (*self.course[1 - COVER_FRAMES:], count)
         last = np.asarray(course, dtype=np.float64)
         last = last[np.isfinite(last)]
-        need = cfg.tracking.coast_course_points
-        if need <= 0.0 or last.size < frames:
+        if last.size < COVER_FRAMES:
             return replace(self, course=course)
         median = float(np.median(last))
-        on = median >= max(need, cfg.tracking.coast_course_fraction * self.course_peak)
+        on = median >= max(COURSE_POINTS, COURSE_FRACTION * self.course_peak)
         # seen at all only above what background in the band counts on its own (3-6 points)
-        seen = on and median >= cfg.tracking.coast_course_seen_points
+        seen = on and median >= COURSE_SEEN_POINTS
         return replace(self, course=course, seen_on_course=self.seen_on_course or seen,
                        off_course=self.off_course or (self.seen_on_course and not on),
                        course_peak=max(self.course_peak, median))
 
 
-def reacquire(lost: tuple[LostTrack, ...], contact: GroundContact, cfg: Config
-               ) -> LostTrack | None:
+def reacquire(lost: tuple[LostTrack, ...], contact: GroundContact) -> LostTrack | None:
     """The lost track whose coasted position is nearest (Mahalanobis) to ``contact``, inside
-    ``reacquire_gate_sigmas`` and ``reacquire_gate_m``; None when none is."""
+    ``REACQUIRE_GATE_SIGMAS`` and ``REACQUIRE_GATE_M``; None when none is."""
     best: tuple[float, LostTrack] | None = None
     for lt in lost:
         g = lt.cues.ground
@@ -95,7 +99,7 @@ def reacquire(lost: tuple[LostTrack, ...], contact: GroundContact, cfg: Config
             continue
         m = innovation_sigmas(g, contact)
         far = float(np.hypot(*(contact.z - g.position)))
-        if m <= cfg.tracking.reacquire_gate_sigmas and far <= cfg.tracking.reacquire_gate_m \
+        if m <= REACQUIRE_GATE_SIGMAS and far <= REACQUIRE_GATE_M \
                 and (best is None or m < best[0]):
             best = (m, lt)
     return best[1] if best is not None else None
@@ -103,29 +107,34 @@ def reacquire(lost: tuple[LostTrack, ...], contact: GroundContact, cfg: Config
 
 def coast_lost(previous: TrackerState, previous_cues: dict[int, TrackCues],
                previous_lost: tuple[LostTrack, ...], tracker: TrackerState, t: float, dt: float,
-               sensors: SensorSample, cfg: Config) -> tuple[LostTrack, ...]:
+               sensors: SensorSample, model: GroundModel, cfg: HiddenConfig
+               ) -> tuple[LostTrack, ...]:
     """The lost tracks after this frame: the previous ones and the confirmed tracks the image
     tracker dropped this frame while moving over ground, their 3-D states predicted by ``dt``
-    (ego motion removed) and forgotten ``reacquire_s`` after their last ground contact."""
-    if cfg.tracking.reacquire_s <= 0.0:
+    (ego motion removed) and forgotten ``keep_s`` after their last ground contact."""
+    if cfg.keep_s <= 0.0:
         return ()
     alive = {tr.uid for tr in tracker.tracks}
-    window = cfg.tracking.reacquire_s
+    window = cfg.keep_s
+
+    def moved_within(cues: TrackCues) -> bool:
+        motion = cues.get("motion")
+        return motion is not None and t - motion.t <= window
+
     dropped = tuple(LostTrack(id=int(tr.id), cues=previous_cues[tr.uid], track=tr)
                     for tr in previous.tracks
                     if tr.id is not None and tr.uid not in alive and tr.uid in previous_cues
                     and previous_cues[tr.uid].ground is not None
-                    and (t - previous_cues[tr.uid].moved_t <= window
-                         or not cfg.tracking.reacquire_moving_only))
+                    and moved_within(previous_cues[tr.uid]))
     # no fading memory while coasting: it would inflate the covariance and widen the gate
-    ground_cfg = replace(cfg.ground, memory_s=0.0)
+    coasting = replace(model, memory_s=0.0)
     out: list[LostTrack] = []
     for lt in previous_lost + dropped:
         g = lt.cues.ground
         assert g is not None
-        g = ground_predict(g, dt, sensors, ground_cfg, steady=True)
-        if t - g.t_update <= cfg.tracking.reacquire_s:
-            out.append(replace(lt, cues=replace(lt.cues, ground=g)))
+        g = ground_predict(g, dt, sensors, coasting, steady=True)
+        if t - g.t_update <= cfg.keep_s:
+            out.append(replace(lt, cues=TrackCues(ground=g, states=lt.cues.states)))
     return tuple(out)
 
 
@@ -135,23 +144,24 @@ def coasted_foot(lt: LostTrack, pose: CameraPose) -> FloatArray | None:
     return None if g is None else ground_in_camera(pose, g.position)
 
 
-def coasted_track(lt: LostTrack, t: float, pose: CameraPose, cfg: Config,
-                  camera: PinholeCamera) -> tuple[ImageTrack, TrackCues] | None:
-    """A lost (hidden) track as an image track and cues from its coasted 3-D state, to be
-    assessed like a seen one, for ``coast_warn_s`` after its last ground contact; None after
-    that or when it cannot be placed in the image.
+def coasted_track(lt: LostTrack, t: float, pose: CameraPose, x_m: float, camera: PinholeCamera,
+                  warn_s: float) -> ImageTrack | None:
+    """A lost (hidden) track as an image track from its coasted 3-D state, to be assessed like
+    a seen one (with its cues, the scale cue left out: nothing of the object is measured), for
+    ``warn_s`` after its last ground contact; None after that or when it cannot be placed in
+    the image. ``x_m``: the camera's position along the vehicle's x axis (m).
 
     Its box is the last image box, scaled by the change of depth and centred above the
-    coasted ground position projected into the image; the scale cue is not used (nothing
-    of the object is measured). What this cannot know is exactly what the occlusion hides:
-    whether the object keeps its velocity; a pedestrian who stops behind the occluder is
-    still predicted to walk on.
+    coasted ground position projected into the image. What this cannot know is exactly what
+    the occlusion hides: whether the object keeps its velocity; a pedestrian who stops behind
+    the occluder is still predicted to walk on.
     """
     g, tr = lt.cues.ground, lt.track
-    if g is None or tr is None or t - g.t_update > cfg.tracking.coast_warn_s:
+    if g is None or tr is None or t - g.t_update > warn_s:
         return None
-    depth_now = float(g.x[0] - cfg.mount.x_m)
-    depth_then = lt.cues.depth
+    depth_now = float(g.x[0] - x_m)
+    depth_state = lt.cues.get("depth")
+    depth_then = depth_state.depth if depth_state is not None else None
     if depth_now <= 0.5 or depth_then is None or depth_then <= 0.5:
         return None
     foot = coasted_foot(lt, pose)
@@ -164,6 +174,6 @@ def coasted_track(lt: LostTrack, t: float, pose: CameraPose, cfg: Config,
     x[0, 0], x[1, 0] = uf, vf - 0.5 * h
     x[:, 1:] = 0.0
     # the probability it had while seen: an occluder thins its region out before it is lost
-    coasted = replace(tr, x=x, size=(w, h), cluster=None,
-                      probability=max(tr.probability, lt.cues.peak_probability))
-    return coasted, replace(lt.cues, ground_fresh=False, scale=None)
+    peaks = lt.cues.get("peaks")
+    peak = peaks.probability if peaks is not None else 0.0
+    return replace(tr, x=x, size=(w, h), cluster=None, probability=max(tr.probability, peak))

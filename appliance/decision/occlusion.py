@@ -9,10 +9,11 @@ longer than a static surface's at the object's depth would be; a stopped object 
 background once it has gone) is at that depth or farther, its flow as long or shorter.
 
 :func:`cover_ratio` measures this on a grid of points in the lower part of the coasted
-box (an occluder hides the legs first; the head may show above a car's roof): Lucas-Kanade
-from the current frame back to the previous one (forward-backward checked), the rotation
-removed, and each translational flow projected on the static flow of the object's depth
-(eq. of :func:`likelihood.static_flow`). Pure; the images come from the pipeline step.
+box (an occluder hides the legs first; the head may show above a car's roof): the flow there
+(measured by vision, Lucas-Kanade from the current frame back to the previous one,
+forward-backward checked), the rotation removed, and each translational flow projected on
+the static flow of the object's depth (eq. of :func:`likelihood.static_flow`). Pure: the
+probes name the pixels (:func:`cover_probe`, :func:`course_probe`), vision measures them.
 
 Hidden, but is it still coming? A pedestrian who stops behind a parked car and one who walks
 on are the same to the cover test; what tells them apart is what shows above the roof, the
@@ -20,7 +21,7 @@ head. On a collision course an object keeps its bearing, so its head barely move
 image (translational flow ~0, a ratio near 0), while a head that stopped moves like the static
 scene at its depth (ratio 1) and the background behind it, farther, in between (on the
 simulator's twins: 0.1 walking on, 0.6 slowing down, 1.0 stopped, 0.4-0.6 facade, per frame at
-the true head). :func:`coasted_course` counts the points of a dense grid over the band where
+the true head). :func:`course_count` counts the points of a dense grid over the band where
 the coasted object's head should be whose ratio is that low; the head is a few pixels wide, so
 only the points whose Lucas-Kanade window holds it (within ~4 px) see it.
 """
@@ -28,16 +29,15 @@ only the points whose Lucas-Kanade window holds it (within ~4 px) see it.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
-from appliance.config import FlowConfig
 from appliance.decision.tracking import ImageTrack
 from appliance.messages import EgoMotion, SensorSample
-from appliance.vision.flow import flow_into
-from appliance.vision.geometry import FloatArray, PinholeCamera, euler_to_matrix, in_image, lk_start
+from appliance.vision.geometry import FloatArray, PinholeCamera, euler_to_matrix, in_image
 from appliance.vision.likelihood import derotate, static_flow
+from appliance.vision.probes import PointFlow
 
 MIN_STATIC_FLOW_PX = 0.5   # points where the object's static flow is shorter carry no depth information
 GRID = 6                   # points per side of the probe grid
@@ -46,6 +46,20 @@ HEAD_BAND_WIDTH_M = 1.2    # m, the band's width at least (a coasted position is
 HEAD_GRID_PX = 1.5         # px between the band's points (a head 4-5 px wide is seen by ~4 px of them)
 HEAD_GRID_MAX = (40, 30)   # points across and down at most (a near object: the spacing grows)
 MIN_HEAD_POINTS = 3        # measured points a count needs
+LOW_RATIO = 0.25           # a head-band point keeps its bearing when its translational flow is less than
+                           # this share of a static point's at the object's depth (walking on: ~0.1,
+                           # stopped: 1, the background behind it: 0.4-0.6)
+
+
+@dataclass(frozen=True)
+class CoastProbe:
+    """Pixels (M, 2) of the current frame to measure for a hidden track, the object's camera
+    depth (m) and the camera motion since the previous frame (R (3, 3), t_m (3,) m)."""
+
+    points: FloatArray
+    depth_m: float
+    R: FloatArray
+    t_m: FloatArray
 
 
 def probe_points(box: tuple[float, float, float, float], width: int, height: int,
@@ -58,43 +72,39 @@ def probe_points(box: tuple[float, float, float, float], width: int, height: int
     return pts[in_image(pts, width, height)]
 
 
-def flow_ratios(prev: NDArray[np.uint8], cur: NDArray[np.uint8], pts: FloatArray, depth_m: float,
-                R: FloatArray, t_m: FloatArray, camera: PinholeCamera, flow_cfg: FlowConfig) -> FloatArray:
+def flow_ratios(pts: FloatArray, flow: PointFlow | None, depth_m: float, R: FloatArray,
+                t_m: FloatArray, camera: PinholeCamera) -> FloatArray:
     """Per point (M,) of ``pts`` (current frame, px): its measured translational flow projected
     on a static surface's at camera depth ``depth_m``, over that flow's length; NaN where not
     measured or where the static flow is shorter than ``MIN_STATIC_FLOW_PX``.
 
-    R (3, 3), t_m (3,) m: the camera motion ``X_cur = R X_prev + t`` from the previous frame.
+    ``flow``: the flow vision measured at ``pts`` (None: not measured). R (3, 3), t_m (3,) m:
+    the camera motion ``X_cur = R X_prev + t`` from the previous frame.
     """
     pts = np.asarray(pts, dtype=np.float64).reshape(-1, 2)
-    if len(pts) == 0 or not np.all(np.isfinite(t_m)) or depth_m <= 0.0:
+    if flow is None or len(pts) == 0 or not np.all(np.isfinite(t_m)) or depth_m <= 0.0:
         return np.full(len(pts), np.nan)
-    flow, valid = flow_into(prev, cur, pts, flow_cfg,
-                            lk_start(camera, pts, R.T) if flow_cfg.rotation_guess else None)
     x_cur = camera.undistort(pts)
-    x_prev = camera.undistort(pts - flow)
+    x_prev = camera.undistort(pts - flow.flow)
     flow_t = x_cur - derotate(camera.K, R, x_prev)
     f_s = static_flow(x_cur, camera.K, t_m, np.full(len(pts), depth_m))
     length2 = np.einsum("ij,ij->i", f_s, f_s)
     with np.errstate(invalid="ignore", divide="ignore"):
         ratio = np.einsum("ij,ij->i", flow_t, f_s) / length2
-    ok = valid & np.isfinite(ratio) & (length2 >= MIN_STATIC_FLOW_PX ** 2)
+    ok = flow.valid & np.isfinite(ratio) & (length2 >= MIN_STATIC_FLOW_PX ** 2)
     out: FloatArray = np.where(ok, ratio, np.nan)
     return out
 
 
-def cover_ratio(prev: NDArray[np.uint8], cur: NDArray[np.uint8], box: tuple[float, float, float, float],
-                depth_m: float, R: FloatArray, t_m: FloatArray, camera: PinholeCamera,
-                flow_cfg: FlowConfig) -> tuple[float, int]:
-    """Median ratio of the measured translational flow in ``box`` (current frame, px) to a static
-    surface's at camera depth ``depth_m`` (:func:`flow_ratios`), and the number of points it
-    rests on (0: NaN ratio).
+def cover_ratio(p: CoastProbe, flow: PointFlow | None, camera: PinholeCamera) -> tuple[float, int]:
+    """Median ratio of the measured translational flow at the probe's points to a static
+    surface's at the object's depth (:func:`flow_ratios`), and the number of points it rests on
+    (0: NaN ratio).
 
     About 1: what is there is at the object's depth (the object itself, stopped); below 1:
     farther (background: the object has gone); above 1: something nearer covers it.
     """
-    ratio = flow_ratios(prev, cur, probe_points(box, camera.width, camera.height), depth_m, R, t_m,
-                        camera, flow_cfg)
+    ratio = flow_ratios(p.points, flow, p.depth_m, p.R, p.t_m, camera)
     ok = np.isfinite(ratio)
     if not np.any(ok):
         return float("nan"), 0
@@ -112,34 +122,30 @@ def probe_box(u: float, v_bottom: float, size: tuple[float, float], depth_m: flo
     return (u - 0.5 * w, v_bottom - h, u + 0.5 * w, v_bottom)
 
 
-def coasted_cover(track: ImageTrack, foot: FloatArray | None,
-                  images: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None, ego: EgoMotion,
-                  sensors: SensorSample, dt: float, flow_cfg: FlowConfig,
-                  camera: PinholeCamera) -> float:
-    """:func:`cover_ratio` in the probe box of a coasted track (``lost_tracks.coasted_track``)
-    whose ground position is ``foot`` (camera frame, m); NaN when it cannot be measured (no
-    images, standstill, speed unknown, the box out of the image)."""
-    motion = _coasted_motion(foot, images, ego, sensors, dt)
-    if images is None or motion is None:
-        return float("nan")
-    depth, R, t_m = motion
-    u, v = float(track.x[0, 0]), float(track.x[1, 0])
-    box = probe_box(u, v + 0.5 * track.size[1], track.size, depth, camera)
-    ratio, _ = cover_ratio(images[0], images[1], box, depth, R, t_m, camera, flow_cfg)
-    return ratio
-
-
-def _coasted_motion(foot: FloatArray | None,
-                    images: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None, ego: EgoMotion,
-                    sensors: SensorSample, dt: float) -> tuple[float, FloatArray, FloatArray] | None:
+def _coasted_motion(foot: FloatArray | None, ego: EgoMotion, sensors: SensorSample, dt: float
+                    ) -> tuple[float, FloatArray, FloatArray] | None:
     """The coasted object's camera depth (m) at its ground position ``foot`` (camera frame) and
-    the camera motion (R (3, 3), t_m (3,) m) since the previous frame; None without the image
-    pair, at a standstill, with the speed unknown or the object less than 0.5 m ahead."""
+    the camera motion (R (3, 3), t_m (3,) m) since the previous frame; None at a standstill,
+    with the speed unknown or the object less than 0.5 m ahead."""
     speed = sensors.speed_m_s
-    if images is None or foot is None or ego.standstill or not math.isfinite(speed) or foot[2] <= 0.5:
+    if foot is None or ego.standstill or not math.isfinite(speed) or foot[2] <= 0.5:
         return None
     t_m = np.asarray(ego.translation_dir, dtype=np.float64) * speed * dt
     return float(foot[2]), euler_to_matrix(ego.rotation), t_m
+
+
+def cover_probe(track: ImageTrack, foot: FloatArray | None, ego: EgoMotion,
+                sensors: SensorSample, dt: float, camera: PinholeCamera) -> CoastProbe | None:
+    """The points of :func:`cover_ratio` in the probe box of a coasted track
+    (``lost_tracks.coasted_track``) whose ground position is ``foot`` (camera frame, m); None
+    when it cannot be measured (standstill, speed unknown)."""
+    motion = _coasted_motion(foot, ego, sensors, dt)
+    if motion is None:
+        return None
+    depth, R, t_m = motion
+    u, v = float(track.x[0, 0]), float(track.x[1, 0])
+    box = probe_box(u, v + 0.5 * track.size[1], track.size, depth, camera)
+    return CoastProbe(probe_points(box, camera.width, camera.height), depth, R, t_m)
 
 
 def head_band(u: float, v_bottom: float, width_px: float, height_m: float, depth_m: float,
@@ -163,35 +169,30 @@ def band_points(box: tuple[float, float, float, float], width: int, height: int)
     return pts[in_image(pts, width, height)]
 
 
-def course_points(prev: NDArray[np.uint8], cur: NDArray[np.uint8], box: tuple[float, float, float, float],
-                  depth_m: float, R: FloatArray, t_m: FloatArray, camera: PinholeCamera,
-                  flow_cfg: FlowConfig, low_ratio: float) -> tuple[float, float]:
-    """How many points of the band ``box`` (:func:`band_points`) have a flow ratio
-    (:func:`flow_ratios`) below ``low_ratio``: something there keeps its bearing, as an object
-    at ``depth_m`` on a collision course does; and their median column (px). NaN with fewer
-    than ``MIN_HEAD_POINTS`` measured (count) or without such a point (column)."""
-    pts = band_points(box, camera.width, camera.height)
-    ratio = flow_ratios(prev, cur, pts, depth_m, R, t_m, camera, flow_cfg)
+def course_probe(track: ImageTrack, foot: FloatArray | None, height_m: float, ego: EgoMotion,
+                 sensors: SensorSample, dt: float, camera: PinholeCamera) -> CoastProbe | None:
+    """The points of :func:`course_count` in the head band (:func:`head_band`) of a coasted
+    track ``height_m`` tall whose ground position is ``foot`` (camera frame, m); None when it
+    cannot be measured (standstill, speed unknown, height unknown)."""
+    motion = _coasted_motion(foot, ego, sensors, dt)
+    if motion is None or height_m <= 0.0:
+        return None
+    depth, R, t_m = motion
+    u, v = float(track.x[0, 0]), float(track.x[1, 0])
+    box = head_band(u, v + 0.5 * track.size[1], track.size[0], height_m, depth, camera)
+    return CoastProbe(band_points(box, camera.width, camera.height), depth, R, t_m)
+
+
+def course_count(p: CoastProbe, flow: PointFlow | None, camera: PinholeCamera,
+                 low_ratio: float = LOW_RATIO) -> tuple[float, float]:
+    """How many points of the head band have a flow ratio (:func:`flow_ratios`) below
+    ``low_ratio``: something there keeps its bearing, as an object at the probe's depth on a
+    collision course does; and their median column (px). NaN with fewer than
+    ``MIN_HEAD_POINTS`` measured (count) or without such a point (column)."""
+    ratio = flow_ratios(p.points, flow, p.depth_m, p.R, p.t_m, camera)
     ok = np.isfinite(ratio)
     if ok.sum() < MIN_HEAD_POINTS:
         return float("nan"), float("nan")
     low = ok & (ratio < low_ratio)
-    column = float(np.median(pts[low, 0])) if low.any() else float("nan")
+    column = float(np.median(p.points[low, 0])) if low.any() else float("nan")
     return float(low.sum()), column
-
-
-def coasted_course(track: ImageTrack, foot: FloatArray | None, height_m: float,
-                   images: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None, ego: EgoMotion,
-                   sensors: SensorSample, dt: float, flow_cfg: FlowConfig, camera: PinholeCamera,
-                   low_ratio: float) -> tuple[float, float]:
-    """:func:`course_points` in the head band (:func:`head_band`) of a coasted track
-    (``lost_tracks.coasted_track``) ``height_m`` tall whose ground position is ``foot``
-    (camera frame, m); NaN when it cannot be measured (no images, standstill, speed unknown,
-    height unknown, the band out of the image)."""
-    motion = _coasted_motion(foot, images, ego, sensors, dt)
-    if images is None or motion is None or height_m <= 0.0:
-        return float("nan"), float("nan")
-    depth, R, t_m = motion
-    u, v = float(track.x[0, 0]), float(track.x[1, 0])
-    box = head_band(u, v + 0.5 * track.size[1], track.size[0], height_m, depth, camera)
-    return course_points(images[0], images[1], box, depth, R, t_m, camera, flow_cfg, low_ratio)

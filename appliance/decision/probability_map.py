@@ -9,7 +9,7 @@ Choices where the paper is silent:
 
 * The spatial filter is a *normalised* convolution: the Gaussian-filtered weight
   image divided by the Gaussian-filtered particle count plus a pseudo-count
-  ``evidence_particles``. The result is a local weighted mean of the weights, so
+  ``EVIDENCE_PARTICLES``. The result is a local weighted mean of the weights, so
   it stays in [0, 1] whatever the particle density, a dense patch of low-weight
   (static) particles stays low, and a lone particle counts for less than many.
 * The temporal low pass is a first-order IIR filter per pixel,
@@ -35,6 +35,10 @@ from appliance.messages import ParticleSet
 from appliance.vision.geometry import PinholeCamera, euler_to_matrix
 
 FloatMap = NDArray[np.float32]
+
+# particles, pseudo-count of the normalised convolution: one lone particle of weight w gives
+# p = w / (1 + EVIDENCE_PARTICLES)
+EVIDENCE_PARTICLES = 1.0
 
 
 def map_shape(camera: PinholeCamera, scale: int) -> tuple[int, int]:
@@ -97,7 +101,7 @@ def spatial_probability(particles: ParticleSet, shape: tuple[int, int], scale: i
                         cfg: ProbabilityMapConfig) -> FloatMap:
     """Gaussian-interpolated probability of independent motion of one frame, in [0, 1].
 
-    ``(G * W) / (G * C + evidence_particles)`` with W the weight image, C the
+    ``(G * W) / (G * C + EVIDENCE_PARTICLES)`` with W the weight image, C the
     count image and G the Gaussian of ``gauss_window_px`` (peak normalised).
     """
     weights, counts = insert_particles(particles, shape, scale)
@@ -106,7 +110,7 @@ def spatial_probability(particles: ParticleSet, shape: tuple[int, int], scale: i
     sigma = gaussian_sigma_map_px(cfg.gauss_window_px, scale)
     gw = _blur_peak_one(weights, sigma)
     gc = _blur_peak_one(counts, sigma)
-    denom = gc + np.float32(cfg.evidence_particles)
+    denom = gc + np.float32(EVIDENCE_PARTICLES)
     with np.errstate(divide="ignore", invalid="ignore"):
         p = np.where(denom > 1e-6, gw / np.maximum(denom, 1e-6), 0.0)
     return np.clip(p, 0.0, 1.0).astype(np.float32)
@@ -143,7 +147,7 @@ def spatio_temporal_filter(prev: FloatMap | None, particles: ParticleSet,
     spatial = spatial_probability(particles, shape, cfg.scale, cfg)
     if prev is None or prev.shape != shape:
         return spatial
-    if cfg.rotation_compensation and rotation is not None and np.all(np.isfinite(rotation)):
+    if rotation is not None and np.all(np.isfinite(rotation)):
         prev = warp_by_rotation(prev, rotation, camera, cfg.scale)
     alpha = np.float32(cfg.temporal_alpha)
     out = alpha * spatial + (np.float32(1.0) - alpha) * prev

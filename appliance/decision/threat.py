@@ -205,7 +205,7 @@ def significant_acceleration(velocity: NDArray[np.floating], acceleration: NDArr
 
 
 def significant_velocity(velocity: NDArray[np.floating], P: NDArray[np.floating],
-                         sigmas: float, condition: bool = False) -> FloatArray:
+                         sigmas: float) -> FloatArray:
     """Velocity over ground (2,) m/s with each component (vehicle x, y) whose magnitude is
     below ``sigmas`` times its std (``P`` (4, 4) of ``[x, y, vx, vy]``) set to 0.
 
@@ -215,23 +215,11 @@ def significant_velocity(velocity: NDArray[np.floating], P: NDArray[np.floating]
     if it were known turns a pedestrian who passes 1 m in front of the car into one who
     meets it (it seems to walk towards the car); a component that is not distinguishable
     from 0 is predicted as 0, the static world's value. ``sigmas`` 0: unchanged.
-
-    ``condition``: when vx is insignificant, vy is predicted *given* vx = 0 (Gaussian
-    conditioning on the velocity block of ``P``) and tested with its conditional std,
-    instead of at its marginal mean. For an object ahead the two are correlated through the
-    line of sight: the bearings fix ``sin(b) vx + cos(b) vy``, so a noise value of vx (a
-    range bias that changes with range gave a pedestrian +2.5 m/s) pulls vy the other way;
-    given vx = 0 the crossing speed is what the bearings say. vx is never predicted given vy
-    (a crossing object's vx would then take the noise).
     """
     v = np.asarray(velocity, dtype=np.float64).copy()
     if sigmas <= 0.0:
         return v
     Pv = np.asarray(P, dtype=np.float64)[2:4, 2:4]
     std = np.sqrt(np.maximum(np.diag(Pv), 0.0))
-    small = np.abs(v) < sigmas * std
-    if condition and small[0] and Pv[0, 0] > 0.0:
-        v[1] -= Pv[1, 0] / Pv[0, 0] * v[0]  # E[vy | vx = 0]
-        small[1] = abs(v[1]) < sigmas * math.sqrt(max(Pv[1, 1] - Pv[1, 0] ** 2 / Pv[0, 0], 0.0))
-    v[small] = 0.0
+    v[np.abs(v) < sigmas * std] = 0.0
     return v

@@ -47,6 +47,7 @@ FloatArray = NDArray[np.float64]
 F_POINT_MASS: FloatArray = np.array([[1.0, 1.0, 0.5], [0.0, 1.0, 1.0], [0.0, 0.0, 1.0]])
 # eq. 24: the cluster position and mean flow measure x and v
 H_POSITION_VELOCITY: FloatArray = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+BOX_SIZE_ALPHA = 0.5   # weight of the new cluster box size in a track's smoothed size
 
 
 @dataclass(frozen=True)
@@ -201,7 +202,7 @@ def track_step(state: TrackerState, clusters: tuple[Cluster, ...], cfg: Tracking
             d = np.hypot(centers[:, 0] - t.x[0, 0], centers[:, 1] - t.x[1, 0])
             j = int(np.argmin(d))
             if d[j] < cfg.gate_px or d[j] < cfg.gate_sigmas * t.position_std:
-                tracks[i] = _update(t, clusters[j], model, cfg.box_size_alpha)
+                tracks[i] = _update(t, clusters[j], model, BOX_SIZE_ALPHA)
                 assigned[j] = True
                 continue
         tracks[i] = replace(t, misses=t.misses + 1)

@@ -3,17 +3,20 @@
 Per confirmed track and frame the threat assessment (threat.py) says whether its
 predicted path meets the ego corridor and with what TTC. From that:
 
-* **Indication.** Level 2 is indicated while the path meets the corridor
+* **Indication** (:func:`indication`, the one place that decides whether a track may
+  raise a level, and says why not). Level 2 is indicated while the path meets the corridor
   (``corridor_margin_m``) and TTC <= ``ttc_warning_s``; level 1 with
   ``ttc_caution_s``; only for tracks that have shown independent motion over
-  ground (``min_speed_m_s``, ``moving_sigmas``): the appliance warns of moving
+  ground (the motion cue): the appliance warns of moving
   objects, and a false detection on the static scene converges to standing still;
   and only while the track's regions carry a mean probability of independent
   motion (eq. 20, smoothed) of at least ``min_probability``: false detections on
   road texture are weak and patchy, real movers are not; and, with a ground contact,
   only for a box at least ``min_height_m`` tall at that depth (a road user, not a strip
-  of road). A track moving over ground at ``fast_mover_m_s`` or more (a car, a cyclist)
+  of road). A track moving over ground at ``FAST_MOVER_M_S`` or more (a car, a cyclist)
   needs no ``min_probability``: a lead car at the epipole shows little independent flow.
+  A hidden track, assessed from its coasted 3-D state, needs ``HIDDEN_MIN_PROBABILITY``
+  (its highest while seen) and raises at most ``hidden.max_level``.
 * **Minimum persistence.** A track raises a level only after indicating it in
   ``min_persistence_frames`` consecutive frames: no single-frame warnings. The
   indication looks ahead by the window's length (threshold + (frames - 1) * frame
@@ -31,7 +34,8 @@ predicted path meets the ego corridor and with what TTC. From that:
 
 The issued level is the highest over all tracks (ties: the track already
 warned about, then the smallest TTC). A state change -- level or warned track --
-produces one :class:`WarningEvent`.
+produces one :class:`WarningEvent`. Every track's reason (``tracks.jsonl``) says where it
+stands: "warning" / "caution" for the warned track, else what keeps it from a level.
 """
 
 from __future__ import annotations
@@ -39,40 +43,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 from appliance.config import WarningConfig
+from appliance.decision.assess import TrackThreat
 from appliance.messages import TrackReport, WarningEvent
 
-
-@dataclass(frozen=True)
-class TrackThreat:
-    """What the threat assessment says of one confirmed track this frame.
-
-    on_course: path meets the corridor (base margin); on_course_wide: with the
-    corridor hysteresis added. ttc_s None = no contact predicted / unknown.
-    moving: the track has shown independent motion over ground (needed to raise a level).
-    upright: its box is, or while seen was, at least ``min_height_m`` tall at its depth, or
-    its depth is unknown (needed to raise a level); height_m: its box's height at its depth
-    this frame (m), None when not seen or its depth is unknown. coasted: a hidden track
-    assessed from its coasted 3-D state (``coast_min_probability`` instead of ``min_probability``).
-    evidence: the probability tested against ``min_probability`` when it is not the track's own
-    (``pool_covered_tracks``: the highest of the tracks its box covers), else None.
-    fast: its 3-D state moves over ground at least ``fast_mover_m_s``: it needs no
-    ``min_probability`` (a lead car straight ahead sits at the epipole, where eq. 6 cannot
-    see it, and a braking one looks more and more like the static scene).
-    """
-
-    report: TrackReport
-    on_course: bool
-    on_course_wide: bool
-    moving: bool = True
-    upright: bool = True
-    height_m: float | None = None
-    evidence: float | None = None
-    coasted: bool = False
-    fast: bool = False
-
-    @property
-    def ttc(self) -> float | None:
-        return self.report.ttc_s
+FAST_MOVER_M_S = 5.0          # m/s over ground: a car or cyclist needs no min_probability
+HIDDEN_MIN_PROBABILITY = 0.55  # min_probability of a hidden track (its highest while seen)
+LEVEL_NAMES = {1: "caution", 2: "warning"}
 
 
 @dataclass(frozen=True)
@@ -91,9 +67,9 @@ class WarningState:
 
 def pool_covered(threats: list[TrackThreat]) -> list[TrackThreat]:
     """Each seen track's ``evidence``: the highest eq. 20 probability among itself and the tracks
-    whose box centre its box covers (``warning.pool_covered_tracks``). A near pedestrian's
-    particles gather in separate regions, its feet (the ground contact, the TTC) and its head
-    and shoulders; the feet track's outline reaches up over the others: one object."""
+    whose box centre its box covers. A near pedestrian's particles gather in separate regions,
+    its feet (the ground contact, the TTC) and its head and shoulders; the feet track's outline
+    reaches up over the others: one object."""
     out = []
     for th in threats:
         u0, v0, u1, v1 = th.report.bbox
@@ -106,55 +82,84 @@ def pool_covered(threats: list[TrackThreat]) -> list[TrackThreat]:
     return out
 
 
-def _indicated(th: TrackThreat, threshold: float, wide: bool, hysteresis: float,
-               min_probability: float = 0.0) -> bool:
-    ttc = th.ttc
-    if ttc is None:
-        return False
-    if wide:
-        return th.on_course_wide and ttc <= threshold + hysteresis
+def indication(th: TrackThreat, threshold: float, cfg: WarningConfig) -> str | None:
+    """Why ``th`` does not indicate a level whose TTC threshold is ``threshold`` (s); None when
+    it does. The one place that decides whether a track may warn: it moves over ground, it
+    stands up from the road, its evidence of independent motion is strong enough (or it is a
+    fast mover), its path meets the corridor, and its time to collision is within the
+    threshold."""
+    if not th.moving:
+        return "not moving over ground"
+    if th.height_m is not None and th.height_m < cfg.min_height_m:
+        return f"box {th.height_m:.2f} m tall, below {cfg.min_height_m:.2f} m"
     p = th.report.probability if th.evidence is None else th.evidence
-    return th.moving and th.upright and th.on_course and ttc <= threshold \
-        and (p >= min_probability or th.fast)
+    p_min = HIDDEN_MIN_PROBABILITY if th.coasted else cfg.min_probability
+    fast = th.speed_m_s is not None and th.speed_m_s >= FAST_MOVER_M_S
+    if p < p_min and not fast:
+        return f"probability {p:.2f} below {p_min:.2f}"
+    if not th.on_course:
+        return "path misses corridor" if th.miss_m is None \
+            else f"path misses corridor by {th.miss_m:.1f} m"
+    if th.ttc is None:
+        return "no time to collision"
+    if th.ttc > threshold:
+        return f"ttc {th.ttc:.1f} s above {threshold:.1f} s"
+    return None
+
+
+def holds(th: TrackThreat, threshold: float, hysteresis: float) -> bool:
+    """Whether the track already holding a level keeps it: TTC within the threshold plus the
+    hysteresis and the path meeting the widened corridor."""
+    return th.ttc is not None and th.on_course_wide and th.ttc <= threshold + hysteresis
 
 
 def warning_step(state: WarningState, threats: tuple[TrackThreat, ...], t: float, frame: int,
                  cfg: WarningConfig, frame_dt: float = 0.0,
-                 released: frozenset[int] = frozenset()
-                 ) -> tuple[WarningState, tuple[WarningEvent, ...], TrackReport | None]:
-    """One frame: (new state, events of this frame, the report behind the issued level).
+                 released: frozenset[int] = frozenset(), hidden_max_level: int = 2
+                 ) -> tuple[WarningState, tuple[WarningEvent, ...], TrackReport | None,
+                            dict[int, str]]:
+    """One frame: (new state, events of this frame, the report behind the issued level, each
+    track's reason: "warning" / "caution" for the warned track, else what keeps it from one).
 
     frame_dt: the frame interval (s); the persistence window looks ahead by its own
     length, ``(min_persistence_frames - 1) * frame_dt``, so a steadily falling TTC is
     issued when it reaches the threshold rather than one window later.
     released: ids of tracks known to be off their course (a hidden pedestrian whose head was
     seen to stop, occlusion.py): a level they raised is not held until their contact is due,
-    only for ``hold_s``.
+    only for ``hold_s``. hidden_max_level: the highest level a hidden (coasted) track raises
+    (an issued level is held as any other).
     """
     lookahead = max(cfg.min_persistence_frames - 1, 0) * max(frame_dt, 0.0)
     thresholds = {1: cfg.ttc_caution_s, 2: cfg.ttc_warning_s}
     streaks: dict[int, tuple[int, int]] = {}
     candidates: list[tuple[int, float, int, TrackThreat]] = []
+    levels: dict[int, int] = {}
+    blocked: dict[int, str] = {}
     for th in threats:
         tid = th.report.id
         old = state.streaks.get(tid, (0, 0))
-        p_min = cfg.coast_min_probability if th.coasted else cfg.min_probability
-        s1 = old[0] + 1 if _indicated(th, thresholds[1] + lookahead, False, 0.0, p_min) else 0
-        s2 = old[1] + 1 if _indicated(th, thresholds[2] + lookahead, False, 0.0, p_min) else 0
-        if th.coasted:   # a hidden track raises at most coast_max_level (an issued level is held)
-            s1 = s1 if cfg.coast_max_level >= 1 else 0
-            s2 = s2 if cfg.coast_max_level >= 2 else 0
+        why1 = indication(th, thresholds[1] + lookahead, cfg)
+        s1 = old[0] + 1 if why1 is None else 0
+        s2 = old[1] + 1 if indication(th, thresholds[2] + lookahead, cfg) is None else 0
+        if th.coasted and hidden_max_level < 2:   # an issued level is held
+            s2 = 0
+            if hidden_max_level < 1:
+                s1 = 0
+                why1 = why1 or "hidden: raises no level"
         streaks[tid] = (s1, s2)
         level = 0
         for k, streak in ((2, s2), (1, s1)):
             holding = (state.track == tid and state.level >= k
-                       and _indicated(th, thresholds[k], True, cfg.hysteresis_s))
+                       and holds(th, thresholds[k], cfg.hysteresis_s))
             if streak >= cfg.min_persistence_frames or holding:
                 level = k
                 break
+        levels[tid] = level
         if level > 0:
             ttc = th.ttc if th.ttc is not None else float("inf")
             candidates.append((level, ttc, tid, th))
+        else:
+            blocked[tid] = why1 or f"caution indicated {s1} of {cfg.min_persistence_frames} frames"
     # highest level; then the track already warned about; then the smallest TTC
     candidates.sort(key=lambda c: (-c[0], c[2] != state.track, c[1], c[2]))
     present = {th.report.id: th for th in threats}
@@ -211,7 +216,17 @@ def warning_step(state: WarningState, threats: tuple[TrackThreat, ...], t: float
         if level > 0 else None,
         last_seen=t if seen else state.last_seen,
     )
-    return new_state, events, report if level > 0 else None
+    reasons: dict[int, str] = {}
+    for th in threats:
+        tid = th.report.id
+        if level > 0 and tid == new_track:
+            why = LEVEL_NAMES[level] + (", held" if levels[tid] < level else "")
+        elif levels[tid] > 0:
+            why = f"{LEVEL_NAMES[levels[tid]]}, track {new_track} warned"
+        else:
+            why = blocked[tid]
+        reasons[tid] = why + (", hidden" if th.coasted else "")
+    return new_state, events, report if level > 0 else None, reasons
 
 
 def _extrapolated(last: TrackReport | None, elapsed: float) -> TrackReport | None:

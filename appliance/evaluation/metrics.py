@@ -1,6 +1,7 @@
-"""Scores of one run against its recording's truth (issue 6, item 6).
+"""Scores of one run against its recording's truth: detection delay, warning lead time, TTC and
+distance errors.
 
-Definitions (where the issue is silent, what a validation engineer expects):
+Definitions (what a validation engineer expects):
 
 * **Match:** a confirmed track matches a truth object in a frame when their boxes
   have IoU >= 0.3 (the truth box clipped to the image).
@@ -49,7 +50,7 @@ Definitions (where the issue is silent, what a validation engineer expects):
   does not within the horizon) and its closest gap. A caution for a pedestrian walking
   into the path who stops later is right when it is raised; one on nothing is not. The
   count of onsets whose truth course meets the outline is reported; the level-1 target
-  counts every onset, as the issue says.
+  counts every onset.
 * **TTC / distance error:** medians over the frames of the last 3 s before
   ``collision_t`` of |estimate - truth| / truth for the track of the colliding
   object; the truth TTC is ``collision_t - t``, the truth distance is the gap
@@ -383,7 +384,7 @@ def _on_part_of(track: Box, mover: NDArray[np.float64]) -> bool:
 
 
 def check_targets(r: dict[str, Any]) -> dict[str, bool | None]:
-    """Pass/fail of the issue's targets for one scenario (None: does not apply)."""
+    """Pass/fail of the validation targets for one scenario (None: does not apply)."""
     coll = bool(r["collision"])
     lead = r["lead_time_s"]
     d = r["worst_detection_delay_frames"]

@@ -14,7 +14,8 @@ says *where* in the chain it happened. It replays the recording (the same pipeli
 * ``clusters``: the clusters overlapping its box, each ``[box] N q`` (correspondences, eq. 20);
   a cluster in fewer than ``tracking.confirm_frames`` frames in a row never becomes a track;
 * ``tracks``: the confirmed tracks overlapping its box, each ``#id IoU d= ttc=`` (a track
-  counts as a detection from IoU 0.3 on), and the warning level.
+  counts as a detection from IoU 0.3 on) and, in quotes, its reason: why it warns or what
+  keeps it from warning (``tracks.jsonl``); and the warning level.
 
 The default object is the colliding one (``collision_object``, else the first mover). Outputs
 of the replay go to a temporary directory. A recording without truth is a usage error.
@@ -54,7 +55,7 @@ class TraceRow:
     eligible: bool
     p_max: float
     clusters: tuple[tuple[Box, int, float], ...]
-    tracks: tuple[tuple[int, Box, float, float | None, float | None], ...]
+    tracks: tuple[tuple[int, Box, float, float | None, float | None, str | None], ...]
     level: int
 
 
@@ -81,7 +82,7 @@ def trace_row(frame: int, t: float, truth_box: Box, visible: float, eligible: bo
     clusters = tuple((_box(c.bbox), int(c.n), round(float(c.mean_probability), 2))
                      for c in out.clusters if _near(c.bbox, truth_box, margin))
     tracks = tuple((tr.id, _box(tr.bbox), round(iou(tr.bbox, truth_box), 2), tr.distance_m,
-                    tr.ttc_s) for tr in out.tracks if _near(tr.bbox, truth_box, margin))
+                    tr.ttc_s, tr.reason) for tr in out.tracks if _near(tr.bbox, truth_box, margin))
     return TraceRow(frame=frame, t=round(t, 3), truth=_box(truth_box), visible=round(visible, 2),
                     eligible=eligible, p_max=round(p_max, 2), clusters=clusters, tracks=tracks,
                     level=out.warning_level)
@@ -104,7 +105,8 @@ def format_row(r: TraceRow) -> str:
 
     cl = " ".join(f"{box(b)} N{n} q{q:.2f}" for b, n, q in r.clusters) or "-"
     tr = " ".join(f"#{i} {box(b)} IoU{v:.2f} d={num(d, 'm')} ttc={num(s, 's')}"
-                  for i, b, v, d, s in r.tracks) or "-"
+                  + (f' "{why}"' if why else "")
+                  for i, b, v, d, s, why in r.tracks) or "-"
     return (f"{r.frame:5d} {box(r.truth):>18} {r.visible:4.2f} {'E' if r.eligible else ' '} "
             f"p{r.p_max:4.2f} L{r.level} | clusters {cl} | tracks {tr}")
 

@@ -52,7 +52,7 @@ def _bbox(b: Sequence[float] | None) -> list[float] | None:
 
 
 def track_row(tr: TrackReport) -> dict[str, Any]:
-    return {
+    row: dict[str, Any] = {
         "id": int(tr.id),
         "bbox": _bbox(tr.bbox),
         "probability": _num(tr.probability),
@@ -60,6 +60,9 @@ def track_row(tr: TrackReport) -> dict[str, Any]:
         "ttc_s": _num(tr.ttc_s),
         "distance_m": _num(tr.distance_m),
     }
+    if tr.reason is not None:
+        row["reason"] = tr.reason
+    return row
 
 
 def warning_row(w: WarningEvent) -> dict[str, Any]:

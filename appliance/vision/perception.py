@@ -158,7 +158,8 @@ def _first_frame(state: VisionState, image: NDArray[np.uint8], frame: Frame,
                     standstill=standstill)
     n = len(state.particles)
     particles = ParticleSet(positions=state.particles.copy(), flow=np.zeros((n, 2)),
-                            weights=np.zeros(n), valid=np.zeros(n, dtype=bool))
+                            weights=np.zeros(n), valid=np.zeros(n, dtype=bool),
+                            window_px=cfg.flow.window_px, flow_std_px=cfg.detection.sigma_p_px)
     new = dataclasses.replace(state, frames=state.frames + 1, prev_image=image, prev_t=frame.t,
                               prev_sensors=sensors)
     return new, ego, particles
@@ -282,7 +283,8 @@ def perceive(state: VisionState, frame: Frame, sensors: SensorSample,
                     prior_epipole_px=_epipole(camera, prior_dir), inliers=inliers,
                     confident=refined and not prior.wide, standstill=prior.standstill)
     out = ParticleSet(positions=end.copy(), flow=end - state.particles, weights=weights,
-                      valid=valid.copy())
+                      valid=valid.copy(), window_px=cfg.flow.window_px,
+                      flow_std_px=cfg.detection.sigma_p_px)
     kept = cfg.detection.span_frames - 1   # frames the next span reaches back beyond prev_image
     new = VisionState(seed=state.seed, frames=state.frames + 1, prev_image=image, prev_t=frame.t,
                       prev_sensors=sensors, particles=particles, correction=correction,

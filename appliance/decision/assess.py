@@ -1,0 +1,149 @@
+"""What a confirmed track's cues say of its threat: time to collision, distance, bearing, and
+whether its predicted path meets the ego corridor (``threat.py`` has the geometry and how
+the ground and scale cues combine). Facts only: whether they suffice to warn is decided in
+one place, ``warnings.indication``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from appliance.config import WarningConfig
+from appliance.decision.cues import TrackCues
+from appliance.decision.cues.bearing import bearing_rate
+from appliance.decision.cues.peaks import clip_box
+from appliance.decision.frame import FrameContext
+from appliance.decision.threat import (
+    bumper_ttc,
+    constant_bearing_course,
+    fuse,
+    ground_ttc_std,
+    near_side_gap,
+    object_radius,
+    predict_path,
+    scale_lateral_miss,
+    significant_acceleration,
+    significant_velocity,
+)
+from appliance.decision.tracking import ImageTrack
+from appliance.messages import TrackReport
+
+CORRIDOR_HYSTERESIS_M = 0.3   # m, an issued level is kept while the path meets the corridor widened by this
+BEARING_TOLERANCE_RAD = 0.02  # rad, without a range: bearing change until contact that still counts
+                              # as a constant-bearing collision course
+VELOCITY_SIGNIFICANCE = 2.0   # a velocity component (vehicle x, y) smaller than this many std is predicted as 0
+ACCELERATION_SIGNIFICANCE = 1.0  # an acceleration counts in full from this many std up, not below this less 1
+
+
+@dataclass(frozen=True)
+class TrackThreat:
+    """What the cues say of one confirmed track this frame.
+
+    report: its row of ``tracks.jsonl`` (ttc_s None: no contact predicted, or unknown);
+    on_course: its path meets the corridor (``warning.corridor_margin_m``); on_course_wide: the
+    corridor widened by ``CORRIDOR_HYSTERESIS_M``; miss_m: by how much its path misses the
+    corridor, where known; moving: it has shown independent motion over ground; speed_m_s: its
+    speed over ground (None without a 3-D state); height_m: the tallest its box has been at its
+    depth, None where its depth is unknown; coasted: a hidden track assessed from its coasted
+    3-D state; evidence: the probability tested against ``min_probability`` when it is not the
+    track's own (:func:`warnings.pool_covered`), else None."""
+
+    report: TrackReport
+    on_course: bool
+    on_course_wide: bool
+    miss_m: float | None = None
+    moving: bool = True
+    speed_m_s: float | None = None
+    height_m: float | None = None
+    coasted: bool = False
+    evidence: float | None = None
+
+    @property
+    def ttc(self) -> float | None:
+        return self.report.ttc_s
+
+
+def assess(track: ImageTrack, cues: TrackCues, f: FrameContext, cfg: WarningConfig,
+           coasted: bool = False) -> TrackThreat:
+    """TTC, distance, bearing and the corridor test for one confirmed track (threat.py)."""
+    mount, camera = f.mount, f.camera
+    speed, yaw = f.speed, f.yaw_rate
+    bearings = cues.get("bearing")
+    brg = bearings.last if bearings is not None else None
+    depth_state = cues.get("depth")
+    cue_depth = depth_state.depth if depth_state is not None else None
+    ground_state = cues.get("ground")
+    motion = cues.get("motion")
+    moving = motion.moved if motion is not None else False
+    scale_state = cues.get("scale")
+    scale = scale_state.ttc if scale_state is not None and not coasted else None
+    distance: float | None = None
+    miss: float | None = None
+    ground_est: tuple[float, float] | None = None
+    on_course = on_wide = False
+    depth: float | None = None
+    g = cues.ground
+    if g is not None:
+        pos = g.position
+        # a velocity is as significant as it was when last measured: coasting (no contact
+        # this frame, or hidden) adds uncertainty, not evidence that the object stopped
+        vel = significant_velocity(g.velocity, g.measured_covariance, VELOCITY_SIGNIFICANCE)
+        depth = float(pos[0] - mount.x_m)
+        rng = float(np.hypot(pos[0] - mount.x_m, pos[1] - mount.y_m))
+        radius = object_radius(track.size[0], rng, camera.fx)
+        distance = near_side_gap(pos, radius, mount, f.sensors.pan_rad)
+        # braking or speeding up, where the state estimates it
+        acc = significant_acceleration(vel, g.acceleration, g.P, ACCELERATION_SIGNIFICANCE)
+        base = predict_path(pos, vel, speed, yaw, mount, cfg.corridor_margin_m, radius,
+                            cfg.horizon_s, acc)
+        wide = predict_path(pos, vel, speed, yaw, mount,
+                            cfg.corridor_margin_m + CORRIDOR_HYSTERESIS_M, radius, cfg.horizon_s,
+                            acc)
+        on_course, on_wide = base.ttc is not None, wide.ttc is not None
+        miss = None if on_course else base.closest
+        ttc_g = base.ttc if base.ttc is not None else wide.ttc
+        if ttc_g is not None:
+            ground_est = (ttc_g, ground_ttc_std(pos, g.P, ttc_g, speed, vel))
+    scale_est = bumper_ttc(scale, depth if depth is not None else cue_depth, mount) \
+        if scale is not None else None
+    ttc: float | None = None
+    if g is not None:
+        if ground_est is not None:
+            # the scale cue only where the ground contact is unreliable (coasting)
+            fresh = ground_state is not None and ground_state.fresh and not coasted
+            fused = ground_est if fresh else fuse(ground_est, scale_est)
+            ttc = fused[0] if fused is not None else None
+    elif scale is not None and scale_est is not None and brg is not None:
+        rate = bearing_rate(bearings.history)
+        if rate is not None and cue_depth is not None:
+            lateral = scale_lateral_miss(cue_depth, brg, rate, 1.0 / scale[0], scale_est[0], mount)
+            radius = object_radius(track.size[0], cue_depth, camera.fx)
+            half = 0.5 * mount.vehicle_width_m + cfg.corridor_margin_m + radius
+            on_course = abs(lateral) <= half
+            on_wide = abs(lateral) <= half + CORRIDOR_HYSTERESIS_M
+            miss = None if on_course else abs(lateral) - half
+        elif rate is not None:
+            on_course = constant_bearing_course(brg, rate, scale_est[0], mount,
+                                                cfg.corridor_margin_m, BEARING_TOLERANCE_RAD)
+            on_wide = on_course or constant_bearing_course(
+                brg, rate, scale_est[0], mount, cfg.corridor_margin_m + CORRIDOR_HYSTERESIS_M,
+                BEARING_TOLERANCE_RAD)
+        ttc = scale_est[0] if on_wide else None
+    report = TrackReport(
+        id=int(track.id) if track.id is not None else -1,
+        bbox=clip_box(track.bbox, camera),
+        probability=round(float(track.probability), 4),
+        flow=(round(track.velocity[0], 3), round(track.velocity[1], 3)),
+        ttc_s=None if ttc is None else round(max(ttc, 0.0), 3),
+        distance_m=None if distance is None else round(distance, 2),
+        bearing_rad=None if brg is None else round(brg, 4),
+    )
+    peaks = cues.get("peaks")
+    height = None
+    if depth is not None and depth > 0.0:
+        height = peaks.height_peak_m if peaks is not None else 0.0
+    return TrackThreat(report=report, on_course=on_course, on_course_wide=on_wide, miss_m=miss,
+                       moving=moving, speed_m_s=None if g is None else g.speed, height_m=height,
+                       coasted=coasted)

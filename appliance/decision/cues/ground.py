@@ -1,0 +1,66 @@
+"""The track's 3-D state on the road, from its ground contact (``ground_state.py``).
+
+Every frame the state is predicted with the ego motion from CAN removed (coasting at
+constant velocity while the track has no contact); a ground contact then updates it, or
+starts it, with its velocity across the line of sight from the bearing rate
+(:func:`ground_state.velocity_prior`). A new track whose first contact continues a hidden
+one (``x.found``) takes that one's coasted state. Without a contact for ``coast_s`` the
+state is dropped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+from appliance.config import GroundCueConfig
+from appliance.decision.cues.base import CueInput
+from appliance.decision.ground_state import (
+    GroundModel,
+    GroundTrack,
+    ground_absorb,
+    ground_predict,
+    ground_update,
+    velocity_prior,
+)
+
+
+@dataclass(frozen=True)
+class GroundState:
+    """The 3-D state (None: none yet, or dropped) and whether a contact updated it this frame."""
+
+    ground: GroundTrack | None
+    fresh: bool
+
+
+def ground_model(cfg: GroundCueConfig) -> GroundModel:
+    """The 3-D filter's parameters with the table's contact std and range."""
+    return GroundModel(contact_std_px=cfg.contact_std_px, max_range_m=cfg.max_range_m)
+
+
+class GroundContact:
+    name: ClassVar[str] = "ground"
+    estimates_ground: ClassVar[bool] = True
+
+    def update(self, prev: GroundState | None, x: CueInput, cfg: GroundCueConfig) -> GroundState:
+        f = x.frame
+        model = ground_model(cfg)
+        g = x.ground
+        if g is not None:
+            # no contact in the frame before: coasting, at constant velocity
+            g = ground_predict(g, f.dt, f.sensors, model, steady=f.t - g.t_update > 1.5 * f.dt)
+        contact = x.meas.contact
+        if contact is not None:
+            if x.found is not None and x.found.ground is not None:
+                # the occluded object is back: its coasted state takes the contact
+                g = ground_update(x.found.ground, contact, f.t)
+            else:
+                bearings = x.now.get("bearing")
+                rate = bearings.rate if bearings is not None else None
+                prior = None if rate is None else velocity_prior(
+                    contact.z, rate, f.speed, f.yaw_rate, (f.mount.x_m, f.mount.y_m), model)
+                g = ground_absorb(g, contact, f.t, model, prior)
+        fresh = g is not None and g.t_update == f.t
+        if g is not None and not fresh and f.t - g.t_update > cfg.coast_s:
+            g = None
+        return GroundState(ground=g, fresh=fresh)

@@ -1,4 +1,4 @@
-"""Command line: ``collision-warning run | replay | simulate | demo | evaluate | ptu-sim |
+"""Command line: ``collision-warning run | replay | batch | simulate | demo | evaluate | ptu-sim |
 import-video``.
 
 Exit status 0 on success, 2 on bad arguments, configuration or input (one line
@@ -32,6 +32,7 @@ class _Parser(argparse.ArgumentParser):
 COMMANDS = {
     "run": "appliance.live",
     "replay": "appliance.replay",
+    "batch": "appliance.batch.cli",
     "simulate": "appliance.sim.cli",
     "demo": "appliance.demo",
     "evaluate": "appliance.evaluate",
@@ -73,6 +74,36 @@ def build_parser() -> argparse.ArgumentParser:
     )
     rp.add_argument("--video", metavar="FILE", help="also write an annotated video")
     rp.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+
+    bt = sub.add_parser(
+        "batch",
+        help="replay (and evaluate) many recordings on Ray: local, or a cluster by address",
+    )
+    bt.add_argument(
+        "recordings",
+        nargs="+",
+        metavar="RECORDING",
+        help="drive recordings; a directory of recordings stands for all of them",
+    )
+    bt.add_argument(
+        "--out", required=True, metavar="DIR", help="output directory: DIR/<recording name>/"
+    )
+    bt.add_argument("--config", help="TOML file overriding config/default.toml")
+    bt.add_argument(
+        "--evaluate", action="store_true", help="also score every recording that has truth.json"
+    )
+    bt.add_argument(
+        "--address",
+        metavar="ADDR",
+        help="join the Ray cluster at ADDR (auto, ray://HOST:PORT) instead of a local Ray",
+    )
+    bt.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="local Ray CPUs (default: all of this machine's); on a cluster, at most N "
+        "recordings at once (default: one per CPU of the cluster)",
+    )
 
     sim = sub.add_parser("simulate", help="write a synthetic drive recording with truth.json")
     sim.add_argument("scenario", nargs="?", help="scenario name (see --list)")

@@ -1,201 +1,298 @@
-"""Warning quality over every simulated scenario: ``python -m benchmarks warning_quality``.
+"""Warning quality over every simulated scenario of two worlds: ``python -m benchmarks
+warning_quality [--world own|kitti-street|both]``.
 
-For each scenario of ``collision-warning simulate --list`` and each seed (3 by
-default): simulate a recording, replay it, evaluate the run against the truth
-(``appliance.evaluate``), then print one row per scenario run and an aggregate
-table with the issue's targets:
+Worlds: ``own`` is the appliance's simulator (``collision-warning simulate``), scored by
+``appliance.evaluate``; ``kitti-street`` is the independent world of
+``../shared/worlds/kitti-street`` (``--ks-world``), generated and scored by its own
+``generate.py`` and ``score.py`` (``benchmarks/_kitti_street.py`` maps its scores to these
+columns). For each world, scenario and seed: the recording is made once, then every
+recording of the selected worlds is replayed in one batch on Ray
+(``appliance.batch``, ``--jobs`` workers), then scored. It prints, per world, one row per
+run and one per scenario over its seeds, the pooled figures, and a table pooled per world:
 
 * collision scenarios: level 2 at least 1.5 s before ``collision_t`` (aim 2.0 s);
 * no-collision scenarios: no level-2 warning, at most one level-1 per minute;
 * a mover is a confirmed track within 10 frames of being >= 15 px tall, visible and moving
-  over the ground (> 0.3 m/s, ``appliance.evaluation.metrics``);
-* median relative TTC error <= 20 % and distance error <= 15 % in the last 3 s.
+  over the ground (> 0.3 m/s);
+* median relative TTC error <= 20 % and distance error <= 15 % in the last 3 s;
+* ghost tracks (confirmed tracks never on a mover, no target) per minute (own world only).
 
-It also counts ghost tracks (confirmed tracks never on a mover, no target) per minute.
-
-Options: ``--seeds N``, ``--scenarios a,b``, ``--keep DIR`` (keep recordings and
-runs, with ``timeline.png``; recordings already in DIR are replayed again, not
-simulated again), ``--jobs N`` (parallel scenario runs; the machine
-is shared, default 1), ``--config FILE`` (passed to replay).
+Options: ``--seeds N`` (3) from ``--first-seed S`` (0), ``--scenarios a,b`` (names of either
+world), ``--keep DIR`` (recordings and runs kept in ``DIR/<world>/recordings`` and
+``DIR/<world>/runs``; kept recordings are reused, and kept runs too when the code and
+configuration are the same), ``--jobs N`` (Ray workers and generator processes; the machine
+is shared, default 1), ``--config FILE`` (passed to every replay), ``--markdown FILE`` (the
+tables as a Markdown page, each with the command that reproduces it), ``--ks-world PATH``,
+``--ks-python PATH`` (default: this interpreter when it has the world's packages, else a
+venv created under ``~/.cache/collision-warning``).
 """
 
 from __future__ import annotations
 
 import argparse
 import shutil
-import statistics
 import subprocess
 import sys
 import tempfile
+import time
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from appliance.batch import engine, report
+from appliance.batch.task import Job, JobResult
+from appliance.code_digest import code_digest
+from appliance.config import load_config
 from appliance.errors import ApplianceError
-from appliance.evaluate import evaluate_run, print_table, table_row
+from appliance.evaluate import print_table, table_row
+from appliance.evaluation import pooled
+from benchmarks import _kitti_street as ks
 
 CLI = [sys.executable, "-m", "appliance"]
+OWN, KITTI = "own", "kitti-street"
+PROG = "python -m benchmarks warning_quality"
 
 
-def scenarios() -> list[str]:
-    out = subprocess.run([*CLI, "simulate", "--list"], capture_output=True, text=True)
+@dataclass
+class World:
+    """One world's selection, where its files go, and what came out."""
+
+    name: str
+    scenarios: list[str]
+    root: Path
+    recordings: dict[str, tuple[str, int]] = field(default_factory=dict)  # name -> (scen, seed)
+    results: list[dict[str, Any]] = field(default_factory=list)
+    errors: list[str] = field(default_factory=list)
+
+    @property
+    def rec_dir(self) -> Path:
+        return self.root / self.name / "recordings"
+
+    @property
+    def run_dir(self) -> Path:
+        return self.root / self.name / "runs"
+
+
+def own_scenarios() -> list[str]:
+    out = subprocess.run([*CLI, "simulate", "--list"], capture_output=True, text=True,
+                         check=False)
     if out.returncode != 0:
         raise SystemExit(f"simulate --list failed: {out.stderr.strip() or out.stdout.strip()}")
-    names = [line.split()[0] for line in out.stdout.splitlines()
-             if line.strip() and not line.startswith((" ", "#"))]
-    return [n.rstrip(":") for n in names]
+    return [line.split()[0].rstrip(":") for line in out.stdout.splitlines()
+            if line.strip() and not line.startswith((" ", "#"))]
 
 
-def one_run(name: str, seed: int, work: Path, config: str | None, plots: bool) -> dict[str, Any]:
-    rec = work / f"{name}-seed{seed}"
-    run = work / f"{name}-seed{seed}-run"
-    steps = [
-        # --force: a kept DIR's earlier run of this recording is replaced
-        [*CLI, "replay", str(rec), "--out", str(run), "--no-progress", "--force"]
-        + (["--config", config] if config else []),
-    ]
-    if not (rec / "truth.json").exists():  # a kept recording is reused (the simulator is seeded)
-        steps.insert(0, [*CLI, "simulate", name, "--out", str(rec), "--seed", str(seed)])
-    for cmd in steps:
-        p = subprocess.run(cmd, capture_output=True, text=True)
-        if p.returncode != 0:
-            msg = (p.stderr.strip().splitlines() or ["(no message)"])[-1]
-            return {"scenario": name, "seed": seed, "error": f"{cmd[3]} exit {p.returncode}: {msg}"}
+def simulate_own(world: World, seeds: range, jobs: int) -> None:
+    """``collision-warning simulate`` for every wanted recording not kept yet."""
+    world.rec_dir.mkdir(parents=True, exist_ok=True)
+    todo = []
+    for name in world.scenarios:
+        for seed in seeds:
+            rec = f"{name}-seed{seed}"
+            world.recordings[rec] = (name, seed)
+            if not (world.rec_dir / rec / "truth.json").exists():
+                todo.append((name, seed, world.rec_dir / rec))
+
+    def one(job: tuple[str, int, Path]) -> str | None:
+        name, seed, rec = job
+        p = subprocess.run([*CLI, "simulate", name, "--out", str(rec), "--seed", str(seed)],
+                           capture_output=True, text=True, check=False)
+        if p.returncode == 0:
+            return None
+        return f"{rec.name}: simulate exit {p.returncode}: " + (
+            p.stderr.strip().splitlines() or ["(no message)"])[-1]
+
+    if todo:
+        print(f"own: simulating {len(todo)} recordings", flush=True)
+    with ThreadPoolExecutor(max_workers=max(jobs, 1)) as pool:
+        world.errors += [e for e in pool.map(one, todo) if e]
+
+
+def generate_kitti(world: World, seeds: range, jobs: int, python: str, ks_world: Path) -> None:
+    world.rec_dir.mkdir(parents=True, exist_ok=True)
+    wanted = [(n, s) for n in world.scenarios for s in seeds]
+    world.recordings = {ks.recording_name(n, s): (n, s) for n, s in wanted}
+    world.errors += ks.generate(python, ks_world, world.rec_dir, wanted, jobs)
+
+
+def replay_all(worlds: list[World], config: str | None, jobs: int) -> dict[str, JobResult]:
+    """Every recording of every world in one batch; own-world runs evaluated in the task."""
+    cfg = load_config(config)
+    batch = [Job(recording=str(w.rec_dir / rec), out_dir=str(w.run_dir / rec),
+                 evaluate=w.name == OWN)
+             for w in worlds for rec in w.recordings if (w.rec_dir / rec / "truth.json").exists()]
+    from tqdm import tqdm
+
+    bar = tqdm(total=len(batch), unit="rec", file=sys.stderr, disable=None, desc="replay")
+
+    def seen(r: JobResult) -> None:
+        bar.update(1)
+        tqdm.write(f"  {Path(r.out_dir).parent.parent.name}/{r.name}: {r.status}"
+                   + (f" ({r.error})" if r.error else f" in {r.replay_s or 0:.1f} s"))
+
+    t0 = time.perf_counter()
     try:
-        r = evaluate_run(rec, run, plot=plots)
-    except ApplianceError as exc:
-        return {"scenario": name, "seed": seed, "error": f"evaluate: {exc}"}
-    r["seed"] = seed
-    lead = "-" if r["lead_time_s"] is None else f"{r['lead_time_s']:.2f} s"
-    print(f"  {name}#{seed}: lead {lead}, false level-2 {r['false_level2']}, "
-          f"level-1 onsets {r['level1_onsets']}", flush=True)
-    return r
+        info = engine.connect(engine.Cluster(workers=max(jobs, 1)))
+    except engine.RayMissing:
+        print(f"Ray is not installed ({engine.INSTALL_HINT}): replaying one after another",
+              flush=True)
+        results = engine.run_in_process(batch, cfg, seen)
+    else:
+        print(f"replaying {len(batch)} recordings on Ray {info.version} with {jobs} workers "
+              f"(start-up {info.startup_s:.1f} s)", flush=True)
+        try:
+            results = engine.run_on_ray(batch, cfg, engine.Cluster(workers=max(jobs, 1)), seen)
+        finally:
+            engine.disconnect()
+    bar.close()
+    print(f"replayed in {time.perf_counter() - t0:.0f} s", flush=True)
+    for w in worlds:
+        c = report.costs([r for r in results if Path(r.out_dir).parent == w.run_dir])
+        if c["recordings_replayed"]:
+            peak = max(c["peak_rss_mb_per_worker"].values(), default=0.0)
+            read = c["read_bytes_total"] or 0
+            print(f"  {w.name}: {c['recordings_replayed']} replayed, CPU {c['cpu_ms_per_frame']}"
+                  f" ms/frame (replay and evaluation), {read / max(c['frames_replayed'], 1) / 1e3:.0f}"
+                  f" kB read/frame, worker peak RSS {peak:.0f} MB")
+    return {r.out_dir: r for r in results}
 
 
-def _med(values: list[float]) -> float | None:
-    return statistics.median(values) if values else None
+def collect(world: World, runs: dict[str, JobResult], python: str | None,
+            ks_world: Path | None) -> None:
+    """The world's results, in the shape of ``appliance.evaluate``'s, one per recording."""
+    scores: dict[str, Any] = {}
+    if world.name == KITTI:
+        assert python is not None and ks_world is not None
+        replayed = [world.rec_dir / rec for rec in world.recordings
+                    if str(world.run_dir / rec) in runs
+                    and runs[str(world.run_dir / rec)].status != "failed"]
+        if replayed:
+            try:
+                scores = ks.score(python, ks_world, replayed, world.run_dir)
+            except ks.WorldError as exc:
+                world.errors.append(str(exc))
+    for rec, (scenario, seed) in world.recordings.items():
+        r = runs.get(str(world.run_dir / rec))
+        if r is None:
+            res: dict[str, Any] = {"scenario": scenario, "error": "no recording"}
+        elif r.status == "failed":
+            res = {"scenario": scenario, "error": r.error}
+        elif world.name == OWN:
+            res = dict(r.evaluation) if r.evaluation else {"scenario": scenario,
+                                                           "error": "not evaluated"}
+        elif rec in scores:
+            res = ks.as_evaluation(scores[rec], ks.duration_s(world.rec_dir / rec))
+        else:
+            res = {"scenario": scenario, "error": "not scored"}
+        res["seed"] = seed
+        res["world"] = world.name
+        world.results.append(res)
 
 
-def aggregate(results: list[dict[str, Any]]) -> list[dict[str, str]]:
-    """One row per scenario over its seeds."""
-    rows = []
-    for name in dict.fromkeys(r["scenario"] for r in results):
-        rs = [r for r in results if r["scenario"] == name and "error" not in r]
-        errors = [r for r in results if r["scenario"] == name and "error" in r]
-        if not rs:
-            rows.append({"scenario": name, "seeds": f"0/{len(errors)}", "coll": "-",
-                         "lead min/med": "-", "falseL2": "-", "L1/min max": "-",
-                         "detect max": "-", "TTCerr": "-", "distErr": "-", "ghosts/min": "-",
-                         "targets": "ERROR " + errors[0]["error"]})
-            continue
-        coll = rs[0]["collision"]
-        leads = [r["lead_time_s"] for r in rs]
-        known = [v for v in leads if v is not None]
-        delays = [r["worst_detection_delay_frames"] for r in rs if r["objects"]]
-        failed = sorted({k for r in rs for k, ok in r["targets"].items() if ok is False})
-        l1 = [r["level1_per_min"] for r in rs if r["level1_per_min"] is not None]
-        ttc = [r["ttc_rel_error_median"] for r in rs if r["ttc_rel_error_median"] is not None]
-        dist = [r["distance_rel_error_median"] for r in rs
-                if r["distance_rel_error_median"] is not None]
-
-        def f(v: float | None, spec: str = ".2f") -> str:
-            return "-" if v is None else format(v, spec)
-
-        lead_txt = "-"
-        if coll:
-            lead_txt = (f"{f(min(known))}/{f(_med(known))}" if len(known) == len(leads)
-                        else f"MISS {len(leads) - len(known)}")
-        rows.append({
-            "scenario": name,
-            "seeds": f"{len(rs)}/{len(rs) + len(errors)}",
-            "coll": "yes" if coll else "no",
-            "lead min/med": lead_txt,
-            "falseL2": str(sum(r["false_level2"] for r in rs)),
-            "L1/min max": "-" if coll or not l1 else f(max(l1)),
-            "detect max": "-" if not delays else ("MISS" if None in delays else str(max(delays))),
-            "TTCerr": f(_med(ttc), ".0%"),
-            "distErr": f(_med(dist), ".0%"),
-            "ghosts/min": f(sum(r["ghost_tracks"] for r in rs)
-                            / max(sum(r["duration_s"] for r in rs) / 60.0, 1e-9), ".1f"),
-            "targets": "ok" if not failed and not errors else
-            "FAIL " + ",".join(failed + (["errors"] if errors else [])),
-        })
-    return rows
-
-
-def print_rows(rows: list[dict[str, str]]) -> None:
-    if not rows:
-        return
-    heads = list(rows[0])
-    widths = [max(len(h), *(len(r[h]) for r in rows)) for h in heads]
-    print("  ".join(h.ljust(w) for h, w in zip(heads, widths)))
-    print("  ".join("-" * w for w in widths))
-    for r in rows:
-        print("  ".join(r[h].ljust(w) for h, w in zip(heads, widths)))
-
-
-def main(argv: list[str]) -> int:
-    ap = argparse.ArgumentParser(prog="python -m benchmarks warning_quality")
-    ap.add_argument("--seeds", type=int, default=3)
-    ap.add_argument("--scenarios", help="comma-separated subset (default: all)")
-    ap.add_argument("--keep", metavar="DIR", help="keep recordings and runs in DIR")
-    ap.add_argument("--jobs", type=int, default=1)
-    ap.add_argument("--config", help="configuration file passed to replay")
-    args = ap.parse_args(argv)
-    names = args.scenarios.split(",") if args.scenarios else scenarios()
-    work = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="warning_quality-"))
-    work.mkdir(parents=True, exist_ok=True)
-    jobs = [(n, s) for n in names for s in range(args.seeds)]
-    print(f"{len(names)} scenarios x {args.seeds} seeds; work dir {work}", flush=True)
-    try:
-        with ThreadPoolExecutor(max_workers=max(args.jobs, 1)) as pool:
-            results = list(pool.map(
-                lambda job: one_run(job[0], job[1], work, args.config, bool(args.keep)), jobs))
-    finally:
-        if not args.keep:
-            shutil.rmtree(work, ignore_errors=True)
-    ok = [r for r in results if "error" not in r]
-    print("\nper run:")
+def print_world(world: World) -> list[dict[str, str]]:
+    ok = [r for r in world.results if "error" not in r]
+    print(f"\n== {world.name}: per run")
     rows = []
     for r in ok:
         row = table_row(r)
         row["scenario"] = f"{r['scenario']}#{r['seed']}"
         rows.append(row)
     print_table(rows)
-    for r in results:
+    for r in world.results:
         if "error" in r:
             print(f"  {r['scenario']}#{r['seed']}: {r['error']}")
-    print("\naggregate over seeds:")
-    agg = aggregate(results)
-    print_rows(agg)
-    coll = [r for r in ok if r["collision"]]
-    calm = [r for r in ok if not r["collision"]]
-    leads = [r["lead_time_s"] for r in coll]
-    print(f"\ncollision runs with level 2 >= 1.5 s before contact: "
-          f"{sum(1 for v in leads if v is not None and v >= 1.5)}/{len(coll)}"
-          f" (median lead {_med([v for v in leads if v is not None]) or float('nan'):.2f} s)")
-    print(f"false level-2 warnings: {sum(r['false_level2'] for r in ok)} "
-          f"(no-collision runs with any: {sum(1 for r in calm if r['false_level2'])}/{len(calm)})")
-    calm_min = sum(r["duration_s"] for r in calm) / 60.0
-    if calm_min > 0:
-        print(f"level-1 onsets in no-collision runs: {sum(r['level1_onsets'] for r in calm)} in "
-              f"{calm_min:.1f} min ({sum(r['level1_onsets'] for r in calm) / calm_min:.2f}/min); "
-              f"{sum(r['level1_on_truth_course'] for r in calm)} of them raised while the truth "
-              f"course met the corridor within the caution horizon")
-    timely = [r for r in ok for o in r["objects"]
-              if o["detection_delay_frames"] is not None and o["detection_delay_frames"] <= 10]
-    movers = [o for r in ok for o in r["objects"]]
-    print(f"movers confirmed within 10 frames of being >= 15 px tall, visible and moving: "
-          f"{len(timely)}/{len(movers)}")
-    run_min = sum(r["duration_s"] for r in ok) / 60.0
-    if run_min > 0:
-        ghosts = sum(r["ghost_tracks"] for r in ok)
-        print(f"ghost tracks (confirmed, never on a mover): {ghosts} in {run_min:.1f} min "
-              f"({ghosts / run_min:.2f}/min), "
-              f"{sum(r['ghost_track_frames'] for r in ok)} track-frames")
-    meeting = sum(1 for r in ok if not any(v is False for v in r["targets"].values()))
-    print(f"runs meeting every target: {meeting}/{len(results)}")
-    return 0 if all(a["targets"] == "ok" for a in agg) else 1
+    for e in world.errors:
+        print(f"  ! {e}")
+    print(f"\n== {world.name}: aggregate over seeds")
+    agg = pooled.aggregate(world.results)
+    print("\n".join(pooled.format_rows(agg)))
+    print()
+    print("\n".join(pooled.totals_lines(pooled.totals(world.results))))
+    return agg
+
+
+def main(argv: list[str]) -> int:
+    ap = argparse.ArgumentParser(prog=PROG)
+    ap.add_argument("--world", choices=(OWN, KITTI, "both"), default="both")
+    ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--first-seed", type=int, default=0, metavar="S",
+                    help="seeds S..S+N-1 (held-out seeds: a first seed past the tuned ones)")
+    ap.add_argument("--scenarios", help="comma-separated subset (default: all of each world)")
+    ap.add_argument("--keep", metavar="DIR", help="keep recordings and runs in DIR")
+    ap.add_argument("--jobs", type=int, default=1, help="Ray workers and generator processes")
+    ap.add_argument("--config", help="configuration file passed to replay")
+    ap.add_argument("--markdown", metavar="FILE", help="also write the tables as Markdown")
+    ap.add_argument("--ks-world", metavar="PATH", help="the kitti-street world "
+                    "(default: ../shared/worlds/kitti-street beside the repository)")
+    ap.add_argument("--ks-python", metavar="PATH", help="interpreter for the kitti-street world")
+    args = ap.parse_args(argv)
+    if args.config:
+        try:
+            load_config(args.config)
+        except ApplianceError as exc:
+            print(f"{PROG}: {exc}", file=sys.stderr)
+            return 2
+    seeds = range(args.first_seed, args.first_seed + args.seeds)
+    wanted = set(args.scenarios.split(",")) if args.scenarios else None
+    work = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="warning_quality-"))
+    worlds: list[World] = []
+    python = ks_world = None
+    if args.world in (OWN, "both"):
+        names = [n for n in own_scenarios() if wanted is None or n in wanted]
+        if names or wanted is None:
+            worlds.append(World(OWN, names, work))
+    if args.world in (KITTI, "both"):
+        ks_world = Path(args.ks_world).resolve() if args.ks_world else ks.default_world()
+        try:
+            ks.check_world(ks_world)
+            python, how = ks.find_python(args.ks_python)
+            names = [n for n in ks.scenarios(python, ks_world) if wanted is None or n in wanted]
+        except ks.WorldError as exc:
+            if args.world == KITTI:
+                print(f"{PROG}: kitti-street: {exc}", file=sys.stderr)
+                return 2
+            print(f"kitti-street skipped: {exc}", flush=True)
+        else:
+            print(f"kitti-street: {ks_world}, interpreter {python} ({how})", flush=True)
+            if names or wanted is None:
+                worlds.append(World(KITTI, names, work))
+    unknown = (wanted or set()) - {n for w in worlds for n in w.scenarios}
+    if unknown or not worlds:
+        print(f"{PROG}: unknown scenario(s) for the selected worlds: "
+              f"{', '.join(sorted(unknown)) or '-'}", file=sys.stderr)
+        return 2
+    print(", ".join(f"{w.name}: {len(w.scenarios)} scenarios" for w in worlds)
+          + f" x seeds {seeds.start}-{seeds.stop - 1}; work dir {work}", flush=True)
+    t0 = time.perf_counter()
+    try:
+        for w in worlds:
+            if w.name == OWN:
+                simulate_own(w, seeds, args.jobs)
+            else:
+                assert python is not None and ks_world is not None
+                generate_kitti(w, seeds, args.jobs, python, ks_world)
+        t_rec = time.perf_counter() - t0
+        runs = replay_all(worlds, args.config, args.jobs)
+        for w in worlds:
+            collect(w, runs, python, ks_world)
+    finally:
+        if not args.keep:
+            shutil.rmtree(work, ignore_errors=True)
+    tables = {w.name: print_world(w) for w in worlds}
+    everything = [r for w in worlds for r in w.results]
+    by_world = pooled.aggregate(everything, group=lambda r: str(r["world"]), label="world")
+    if len(worlds) > 1:
+        by_world.append(pooled.pooled_row(everything, "all", label="world"))
+    print("\n== pooled per world")
+    print("\n".join(pooled.format_rows(by_world)))
+    print(f"\n{time.perf_counter() - t0:.0f} s ({t_rec:.0f} s making recordings)")
+    if args.markdown:
+        from benchmarks._results_page import write_page
+
+        write_page(Path(args.markdown), args, worlds, tables, by_world, code_digest())
+        print(f"wrote {args.markdown}")
+    return 0 if all(a["targets"] == "ok" for t in tables.values() for a in t) else 1
 
 
 if __name__ == "__main__":

@@ -8,18 +8,23 @@ Regenerate the references on purpose, after a change that is meant to change the
 
     .venv/bin/python -m tests.golden --update
 
-and review the diff of ``tests/data/golden`` before committing it.
+and review the diff of ``tests/data/golden`` before committing it. The command replays the
+drives in one batch on a local Ray (``appliance.batch``, one worker per CPU) when Ray is
+installed, one after another otherwise; without ``--update`` it compares them instead.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import tempfile
 from pathlib import Path
 from typing import Any
 
+from appliance.batch import engine
+from appliance.batch.task import Job, JobResult
 from appliance.config import load_config
 from appliance.recording import Recording, apply_meta
 from appliance.replay import replay
@@ -45,14 +50,46 @@ FRAME_TOLERANCE = 2
 TTC_TOLERANCE_S = 0.3
 
 
-def run_golden(name: str, workdir: Path) -> list[dict[str, Any]]:
+def simulate_golden(name: str, workdir: Path) -> Path:
     scenario, seed, duration = GOLDEN[name]
-    rec_dir = simulate(scenario, workdir / f"{name}-rec", seed=seed, duration=duration)
+    return Path(simulate(scenario, workdir / f"{name}-rec", seed=seed, duration=duration))
+
+
+def read_warnings(run_dir: Path) -> list[dict[str, Any]]:
+    return [json.loads(x) for x in (run_dir / "warnings.jsonl").read_text().splitlines() if x]
+
+
+def run_golden(name: str, workdir: Path) -> list[dict[str, Any]]:
+    """One golden drive simulated and replayed in this process; its warnings."""
+    rec_dir = simulate_golden(name, workdir)
     cfg = load_config()
     rec = Recording(rec_dir, defaults=cfg)
     out = workdir / f"{name}-run"
     replay(rec, apply_meta(cfg, rec.meta), out)
-    return [json.loads(x) for x in (out / "warnings.jsonl").read_text().splitlines() if x]
+    return read_warnings(out)
+
+
+def run_all(workdir: Path) -> dict[str, list[dict[str, Any]]]:
+    """Every golden drive simulated, then replayed in one batch (on Ray when installed)."""
+    jobs = [Job(str(simulate_golden(name, workdir)), str(workdir / f"{name}-run"), False)
+            for name in GOLDEN]
+    cfg = load_config()
+    results: list[JobResult]
+    try:
+        info = engine.connect(engine.Cluster(workers=min(len(jobs), os.cpu_count() or 1)))
+    except engine.RayMissing:
+        print("Ray is not installed: replaying one after another")
+        results = engine.run_in_process(jobs, cfg)
+    else:
+        print(f"replaying on Ray {info.version}, {info.cpus:g} workers")
+        try:
+            results = engine.run_on_ray(jobs, cfg, engine.Cluster(workers=int(info.cpus)))
+        finally:
+            engine.disconnect()
+    failed = [f"{r.name}: {r.error}" for r in results if r.status == "failed"]
+    if failed:
+        raise SystemExit("replay failed: " + "; ".join(failed))
+    return {name: read_warnings(Path(job.out_dir)) for name, job in zip(GOLDEN, jobs)}
 
 
 def reference(name: str) -> list[dict[str, Any]]:
@@ -81,8 +118,7 @@ def main(argv: list[str]) -> int:
     args = ap.parse_args(argv)
     status = 0
     with tempfile.TemporaryDirectory() as tmp:
-        for name in GOLDEN:
-            got = run_golden(name, Path(tmp))
+        for name, got in run_all(Path(tmp)).items():
             if args.update:
                 (DATA / name).mkdir(parents=True, exist_ok=True)
                 (DATA / name / "warnings.jsonl").write_text(

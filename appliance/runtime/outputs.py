@@ -19,6 +19,7 @@ import can
 import numpy as np
 
 from appliance import __version__
+from appliance.code_digest import code_digest
 from appliance.messages import EgoMotion, StepOutput, TrackReport, WarningEvent
 
 EGOMOTION_HEADER = [
@@ -177,6 +178,7 @@ class RunOutputs:
             raise ValueError("summary.json needs can_frames_sent from the HMI writer")
         body = {
             "version": __version__,
+            "code_digest": code_digest(),
             "warnings_issued": self.warnings_issued,
             **own,
             **summary,

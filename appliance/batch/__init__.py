@@ -1,0 +1,1 @@
+"""Batch replay of many recordings on Ray (``collision-warning batch``)."""

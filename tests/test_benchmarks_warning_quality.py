@@ -1,0 +1,68 @@
+"""warning_quality's second world: kitti-street's own scores in our columns, and the page."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import pytest
+
+from appliance.cli import main
+from appliance.evaluation import pooled
+from appliance.sim.drive import simulate
+from benchmarks import _kitti_street as ks
+from benchmarks._results_page import write_page
+from benchmarks.warning_quality import World
+
+WORLD = ks.default_world()
+
+
+@pytest.mark.skipif(not (WORLD / "score.py").is_file(), reason=f"no kitti-street world at {WORLD}")
+def test_the_worlds_scores_map_to_our_columns(tmp_path: Path) -> None:
+    # the world's score.py scores any recording with a spec truth.json: one of ours will do
+    rec = Path(simulate("lead_car_braking", tmp_path / "data" / "lead", seed=1, duration=3.0))
+    assert main(["replay", str(rec), "--out", str(tmp_path / "runs" / "lead"),
+                 "--no-progress"]) == 0
+    python, _ = ks.find_python(None)
+    raw = ks.score(python, WORLD, [rec], tmp_path / "runs")["lead"]
+    m = raw["metrics"]
+    ev = ks.as_evaluation(raw, ks.duration_s(rec))
+    assert ev["duration_s"] == pytest.approx(3.0, abs=0.05)
+    assert ev["collision"] is raw["collision"] is True
+    assert ev["lead_time_s"] == m["lead_time_s"]["value"]
+    assert ev["false_level2"] == m["false_level2"]["value"]
+    assert ev["level1_per_min"] == pytest.approx(m["level1_count"]["value"] / (3.0 / 60), 0.02)
+    assert ev["worst_detection_delay_frames"] == m["detection_delay_frames"]["value"]
+    assert ev["objects"][0]["tracked_fraction"] == m["tracked_fraction"]["value"]
+    assert ev["ttc_rel_error_median"] == m["ttc_rel_error"]["value"]
+    for ours, theirs in (("lead_time", "lead_time_s"), ("detection", "detection_delay_frames"),
+                         ("rotation", "rotation_error_deg")):
+        assert ev["targets"][ours] is {"PASS": True, "FAIL": False}[m[theirs]["status"]]
+    row = pooled.aggregate([ev])[0]
+    assert row["ghosts/min"] == "-" and row["runs"] == "1/1" and row["coll"] == "yes"
+
+
+def test_an_unscored_run_is_an_error_not_a_clean_run() -> None:
+    raw = {"scenario": "static_bend", "collision": False,
+           "metrics": {"false_level2": {"value": None, "status": "FAIL"}}}
+    assert "error" in ks.as_evaluation(raw, 10.0)
+
+
+def test_the_page_gives_every_table_its_command(tmp_path: Path) -> None:
+    own = World("own", ["bend_static"], tmp_path)
+    own.results = [{"scenario": "bend_static", "seed": 4, "world": "own",
+                    "error": "frames.csv:9: unreadable line"}]
+    kitti = World("kitti-street", ["static_bend"], tmp_path)
+    args = argparse.Namespace(world="both", seeds=2, first_seed=4, scenarios=None,
+                              config="cfg.toml")
+    tables = {"own": pooled.aggregate(own.results), "kitti-street": []}
+    page = tmp_path / "results.md"
+    write_page(page, args, [own, kitti], tables, [], "abc123")
+    text = page.read_text()
+    assert ("`python -m benchmarks warning_quality --world own --seeds 2 --first-seed 4 "
+            "--config cfg.toml`") in text
+    assert "--world kitti-street --seeds 2 --first-seed 4" in text
+    assert "--world both --seeds 2 --first-seed 4 --config cfg.toml --markdown FILE" in text
+    assert "| bend_static | 0/1 |" in text
+    assert "- bend_static#4: frames.csv:9: unreadable line" in text
+    assert "seeds 4-5" in text and "abc123" in text

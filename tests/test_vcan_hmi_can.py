@@ -56,7 +56,7 @@ def writer_for(cfg: Config, log: Path) -> HmiCanWriter:
     h = cfg.hmi_can
     codec = HmiCodec(resource_path(h.dbc), h.warning_id, h.status_id, channel=HMI_BUS)
     return HmiCanWriter(codec, interface="socketcan", channel=HMI_BUS, period_s=h.period_s,
-                        tx_queue=h.tx_queue, log_path=log, reopen_min_s=0.1, reopen_max_s=0.5)
+                        log_path=log, reopen_min_s=0.1, reopen_max_s=0.5)
 
 
 def check_frames(frames: list[can.Message], db: cantools.database.can.Database,

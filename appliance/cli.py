@@ -35,7 +35,7 @@ COMMANDS = {
     "batch": "appliance.batch.cli",
     "simulate": "appliance.sim.cli",
     "demo": "appliance.demo",
-    "evaluate": "appliance.evaluate",
+    "evaluate": "appliance.evaluation.report",
     "ptu-sim": "drivers.ptu_sim",
     "import-video": "appliance.import_video",
 }

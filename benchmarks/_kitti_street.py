@@ -151,7 +151,7 @@ def duration_s(recording: Path) -> float:
 
 
 def as_evaluation(r: dict[str, Any], seconds: float) -> dict[str, Any]:
-    """score.py's result for one run in the shape of ``appliance.evaluate``'s result."""
+    """score.py's result for one run in the shape of ``appliance.evaluation.report``'s result."""
     m = r["metrics"]
 
     def value(k: str) -> Any:

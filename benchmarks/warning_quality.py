@@ -2,7 +2,7 @@
 warning_quality [--world own|kitti-street|both]``.
 
 Worlds: ``own`` is the appliance's simulator (``collision-warning simulate``), scored by
-``appliance.evaluate``; ``kitti-street`` is the independent world of
+``appliance.evaluation.report``; ``kitti-street`` is the independent world of
 ``../shared/worlds/kitti-street`` (``--ks-world``), generated and scored by its own
 ``generate.py`` and ``score.py`` (``benchmarks/_kitti_street.py`` maps its scores to these
 columns). For each world, scenario and seed: the recording is made once, then every
@@ -45,7 +45,7 @@ from appliance.batch.task import Job, JobResult
 from appliance.code_digest import code_digest
 from appliance.config import load_config
 from appliance.errors import ApplianceError
-from appliance.evaluate import print_table, table_row
+from appliance.evaluation.report import print_table, table_row
 from appliance.evaluation import pooled
 from benchmarks import _kitti_street as ks
 
@@ -160,7 +160,7 @@ def replay_all(worlds: list[World], config: str | None, jobs: int) -> dict[str, 
 
 def collect(world: World, runs: dict[str, JobResult], python: str | None,
             ks_world: Path | None) -> None:
-    """The world's results, in the shape of ``appliance.evaluate``'s, one per recording."""
+    """The world's results, in the shape of ``appliance.evaluation.report``'s, one per recording."""
     scores: dict[str, Any] = {}
     if world.name == KITTI:
         assert python is not None and ks_world is not None

@@ -18,7 +18,7 @@ from typing import Any
 import pytest
 
 from appliance.config import Config
-from appliance.evaluate import evaluate_run
+from appliance.evaluation.report import evaluate_run
 from appliance.recording import Recording, apply_meta
 from appliance.replay import replay
 from appliance.sim.drive import simulate

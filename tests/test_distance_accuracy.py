@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from appliance.config import load_config
-from appliance.evaluate import evaluate_run
+from appliance.evaluation.report import evaluate_run
 from appliance.recording import Recording, apply_meta
 from appliance.replay import replay
 from appliance.sim.drive import simulate

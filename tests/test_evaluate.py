@@ -12,7 +12,7 @@ import pytest
 from appliance.cli import main as cli_main
 from appliance.config import Config
 from appliance.errors import UsageError
-from appliance.evaluate import evaluate_run
+from appliance.evaluation.report import evaluate_run
 from appliance.evaluation.metrics import ego_motion, ground_speed
 from appliance.evaluation.runfiles import TruthObject
 from conftest import write_small_recording
@@ -217,7 +217,7 @@ def test_a_run_that_stopped_half_way_is_refused(tmp_path: Path, default_config: 
 
 
 def test_help_explains_every_column_of_the_table(capsys: pytest.CaptureFixture[str]) -> None:
-    from appliance.evaluate import TABLE_COLUMNS
+    from appliance.evaluation.report import TABLE_COLUMNS
 
     with pytest.raises(SystemExit) as exc:
         cli_main(["evaluate", "--help"])

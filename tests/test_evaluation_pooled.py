@@ -10,7 +10,7 @@ from appliance.evaluation import pooled
 def run(scenario: str, collision: bool, lead: float | None = None, l1_per_min: float = 0.0,
         delay: int | None = 3, ghosts: int | None = 2, ttc: float | None = None,
         false_l2: int = 0, ok: bool = True) -> dict[str, Any]:
-    """A result shaped as appliance.evaluate's, 30 s long, with one mover."""
+    """A result shaped as appliance.evaluation.report's, 30 s long, with one mover."""
     return {
         "scenario": scenario, "collision": collision, "duration_s": 30.0,
         "objects": [{"detection_delay_frames": delay, "tracked_fraction": 0.9}],

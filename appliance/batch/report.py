@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from appliance.batch.task import JobResult
-from appliance.evaluate import table_row
+from appliance.evaluation.report import table_row
 from appliance.evaluation import pooled
 
 EVALUATION_COLUMNS = ("coll", "detect(fr)", "tracked", "lead(s)", "falseL2", "L1/min", "TTCerr",

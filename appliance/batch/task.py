@@ -26,7 +26,7 @@ from typing import Any
 from appliance.code_digest import code_digest
 from appliance.config import Config
 from appliance.errors import ApplianceError
-from appliance.evaluate import evaluate_run
+from appliance.evaluation.report import evaluate_run
 from appliance.recording import Recording, apply_meta
 from appliance.replay import replay
 

@@ -1,6 +1,6 @@
 """Figures pooled over many evaluated runs: the warning-quality table and its totals.
 
-Input: evaluation results as :func:`appliance.evaluate.evaluate_run` returns them (one
+Input: evaluation results as :func:`appliance.evaluation.report.evaluate_run` returns them (one
 per run), plus failed runs as ``{"scenario": ..., "error": "..."}``. A result may carry
 ``None`` for a figure its scorer does not compute (another world's scorer has no ghost
 tracks); the table shows ``-`` there and the totals leave it out.

@@ -150,7 +150,7 @@ def test_truth_boxes_match_the_rendered_movers_for_extreme_cameras(
     drive = SimulatedDrive(scenario, seed=2, look=look)
     compared = 0
     for off in offsets_s:
-        step = drive.snapshot(drive.n_frames - 1 - int(round(off * 30)))
+        step = drive.snapshot(drive.n_frames - 1 - round(off * 30))
         oid = str(drive.truth_header["collision_object"])
         rec = step.truth_frame["objects"][oid]
         u0, v0, u1, v1 = rec["bbox"]

@@ -233,9 +233,7 @@ class SimulatedDrive:
         self.collision_object = found[0][1] + 1 if found else None
 
     def _world(self, rng_layout: np.random.Generator) -> None:
-        self.bank = TextureBank.for_look(
-            self.seed, self.look.texture_contrast, self.look.plain_movers
-        )
+        self.bank = TextureBank.for_seed(self.seed, self.look.texture_contrast)
         self.movers = []
         keep = []
         for k, mv in enumerate(self.plan.movers):

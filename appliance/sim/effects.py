@@ -77,7 +77,8 @@ def palette(
     chroma = rng.uniform(0.0, saturation, n)
     chroma[0] = 0.0  # road, sidewalk, sky: the cast only
     d = chroma[:, None] * (np.cos(hue)[:, None] * e1 + np.sin(hue)[:, None] * e2)
-    return (1.0 + cast + d).astype(np.float32)
+    gains: F32 = (1.0 + cast + d).astype(np.float32)
+    return gains
 
 
 class EffectsPipeline:

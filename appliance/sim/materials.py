@@ -32,13 +32,10 @@ class TextureBank:
         return self.index[name]
 
     @staticmethod
-    def generate(
-        rng: np.random.Generator, contrast: float = 1.0, plain_movers: bool = False
-    ) -> TextureBank:
+    def generate(rng: np.random.Generator, contrast: float = 1.0) -> TextureBank:
         """Every texture from ``rng``, its contrast scaled by ``contrast`` (see
-        :func:`appliance.sim.textures.with_contrast`); with ``plain_movers`` also plain
-        skins for the movers (:meth:`skin`). The plain skins are drawn last, so the others do
-        not depend on them."""
+        :func:`appliance.sim.textures.with_contrast`), with a plain skin of each mover class
+        (:meth:`skin`)."""
         bank = TextureBank()
         bank.add(tx.asphalt(rng))
         bank.add(tx.paving(rng))
@@ -59,16 +56,21 @@ class TextureBank:
             bank.add(tx.make_texture(f"cyc_front{k}", ot.cyclist(rng, False), False))
         bank.add(tx.make_texture("pole", ot.pole(rng), False))
         bank.add(tx.make_texture("sign", ot.sign(rng), False))
-        if plain_movers:
-            bank._add_car(rng, "_plain", float(rng.uniform(30, 220)), True)
-            sub = np.random.default_rng(rng.integers(2**63))
-            bank.add(tx.make_texture("ped_front_plain", ot.pedestrian(sub, False, True), False))
-            sub = np.random.default_rng(rng.integers(2**63))
-            bank.add(tx.make_texture("ped_side_plain", ot.pedestrian(sub, True, True), False))
-            bank.add(tx.make_texture("cyc_side_plain", ot.cyclist(rng, True, True), False))
-            bank.add(tx.make_texture("cyc_front_plain", ot.cyclist(rng, False, True), False))
-        bank.textures = [tx.with_contrast(t, contrast) for t in bank.textures]
-        return bank
+        bank._add_car(rng, "_plain", float(rng.uniform(30, 220)), True)
+        sub = np.random.default_rng(rng.integers(2**63))
+        bank.add(tx.make_texture("ped_front_plain", ot.pedestrian(sub, False, True), False))
+        sub = np.random.default_rng(rng.integers(2**63))
+        bank.add(tx.make_texture("ped_side_plain", ot.pedestrian(sub, True, True), False))
+        bank.add(tx.make_texture("cyc_side_plain", ot.cyclist(rng, True, True), False))
+        bank.add(tx.make_texture("cyc_front_plain", ot.cyclist(rng, False, True), False))
+        return bank.with_contrast(contrast)
+
+    def with_contrast(self, contrast: float) -> TextureBank:
+        """The same bank with every texture's contrast scaled (see
+        :func:`appliance.sim.textures.with_contrast`)."""
+        if contrast == 1.0:
+            return self
+        return TextureBank([tx.with_contrast(t, contrast) for t in self.textures], dict(self.index))
 
     def _add_car(self, rng: np.random.Generator, key: str, body: float, plain: bool) -> None:
         self.add(tx.make_texture(f"car_side{key}", ot.car_side(rng, body, plain), False))
@@ -76,10 +78,10 @@ class TextureBank:
         self.add(tx.make_texture(f"car_rear{key}", ot.car_end(rng, body, False, plain), False))
 
     @staticmethod
-    def for_look(seed: int, contrast: float = 1.0, plain_movers: bool = False) -> TextureBank:
-        """The bank of a seed (the same textures in every scenario of a seed, at the drive's
-        contrast); cached, read-only."""
-        return _bank(seed, contrast, plain_movers)
+    def for_seed(seed: int, contrast: float = 1.0) -> TextureBank:
+        """The bank of a seed (the same textures in every scenario of a seed) at the drive's
+        contrast; read-only."""
+        return _bank(seed).with_contrast(contrast)
 
     # ------------------------------------------------------------ skins
 
@@ -103,8 +105,7 @@ class TextureBank:
         return BoxSkin(front, front, side, side, front)
 
     def skin(self, kind: str, k: int, plain: bool = False) -> BoxSkin:
-        """The skin of mover k of class ``kind``; ``plain`` (a bank made with plain movers):
-        its plain skin."""
+        """The skin of mover k of class ``kind`` (``plain``: the class's plain skin)."""
         key: int | str = "_plain" if plain else k
         if kind == "car":
             return self.car_skin(key)
@@ -116,6 +117,5 @@ class TextureBank:
 
 
 @lru_cache(maxsize=2)
-def _bank(seed: int, contrast: float, plain_movers: bool) -> TextureBank:
-    rng = np.random.default_rng(np.random.SeedSequence([seed, 0x7E47]))
-    return TextureBank.generate(rng, contrast, plain_movers)
+def _bank(seed: int) -> TextureBank:
+    return TextureBank.generate(np.random.default_rng(np.random.SeedSequence([seed, 0x7E47])))

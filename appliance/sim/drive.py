@@ -61,8 +61,8 @@ VIDEO_FORMATS = ("mkv", "avi", "png")
 class SimStep:
     """One frame of a simulated drive.
 
-    image: (H, W) uint8 gray or (H, W, 3) BGR (a colour look); can_messages: frames with timestamps in (previous frame, t]
-    (the first step also gets those before it); ptu_samples: (t, pan_rad, tilt_rad) likewise;
+    image: (H, W) uint8 gray or (H, W, 3) BGR (a colour look); can_messages: frames with
+    timestamps in (previous frame, t] (the first step also gets those before it); ptu_samples: (t, pan_rad, tilt_rad) likewise;
     truth_frame: {"camera_pose": 4x4 world-from-camera, "objects": {id: {bbox, visible,
     pos_vehicle, vel_vehicle}}}; ids: (H, W) uint16 object id of every pixel (0 = road/sky).
     """
@@ -153,7 +153,6 @@ class SimulatedDrive:
         self.effects = lk.effects
         self._effects_seed = int(rng[5].integers(2**63))  # every iteration replays the same noise
         self._sensors(rng[6])
-        fx = lk.effects
         self.meta = RecordingMeta(
             camera=self.camera,
             mount=m,
@@ -171,12 +170,7 @@ class SimulatedDrive:
                     "seed": seed,
                     "duration_s": _r(self.duration, 6),
                     "version": __version__,
-                    "texture_contrast": _r(lk.texture_contrast, 4),
-                    "plain_movers": lk.plain_movers,
-                    "bounce_pitch_scale": _r(lk.bounce_pitch_scale, 4),
-                    "bounce_roll_scale": _r(lk.bounce_roll_scale, 4),
-                    **{f.name: _r(v, 4) if isinstance(v, float) else v
-                       for f in dataclasses.fields(fx) for v in (getattr(fx, f.name),)},
+                    **lk.table(),
                 }
             },
         )

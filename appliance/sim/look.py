@@ -10,6 +10,7 @@ truth is projected with the look's camera.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -113,3 +114,16 @@ class Look:
             noise_sigma=uniform(r.noise_sigma),
         )
         return Look(fx, fy, cx, cy, *geometry, *materials, *bounce, effects)
+
+    def table(self) -> dict[str, float | bool]:
+        """What the recording's camera and mount tables do not say (materials, bounce, sensor),
+        for ``meta.toml [simulator]``; numbers to 4 decimals."""
+        values: dict[str, float | bool] = {
+            "texture_contrast": self.texture_contrast,
+            "plain_movers": self.plain_movers,
+            "bounce_pitch_scale": self.bounce_pitch_scale,
+            "bounce_roll_scale": self.bounce_roll_scale,
+        }
+        values.update(dataclasses.asdict(self.effects))
+        return {k: v if isinstance(v, bool) else round(float(v), 4) for k, v in values.items()}
+

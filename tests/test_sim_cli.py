@@ -55,6 +55,7 @@ def test_simulate_writes_a_recording_and_says_what_it_wrote(
     assert str(out) in text and "7 frames" in text and "collision_t: 1000.200" in text
     assert len(text.splitlines()) <= 3
     rec = Recording(out)
+    assert f"look: fx {rec.meta.camera.fx:.0f} px, camera {rec.meta.mount.z_m:.2f} m" in text
     assert rec.n_frames == 7 and (out / "frames" / "000006.png").is_file()
     truth = rec.truth()
     assert truth is not None and truth["collision_t"] == pytest.approx(1000.2)

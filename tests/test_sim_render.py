@@ -11,14 +11,17 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import cv2
 import numpy as np
 import pytest
 
 from appliance.sim import object_textures as ot
 from appliance.sim import textures as tx
-from appliance.sim.drive import SimStep, SimulatedDrive
+from appliance.sim.drive import SimStep, SimulatedDrive, drive_look
 from appliance.sim.effects import Effects
+from appliance.sim.look import Look
 from appliance.sim.render import Renderer, RenderSettings
 from appliance.sim.world import (
     FLAT,
@@ -92,7 +95,13 @@ def _ray_box(obj: StaticObject, origin: np.ndarray, ray: np.ndarray) -> np.ndarr
     return hit
 
 
+def _clean(scenario: str, seed: int) -> Look:
+    """The drive's own look with a perfect gray sensor (the camera and world as drawn)."""
+    return dataclasses.replace(drive_look(scenario, seed), effects=Effects.none())
+
+
 def _lk_errors(drive: SimulatedDrive, a: SimStep, b: SimStep) -> np.ndarray:
+    cam = drive.camera
     boxes = {o.body.obj: o for o in drive.statics if o.body.kind in ("car", "building")}
     A = np.array(a.truth_frame["camera_pose"])
     B_inv = np.linalg.inv(np.array(b.truth_frame["camera_pose"]))
@@ -104,13 +113,13 @@ def _lk_errors(drive: SimulatedDrive, a: SimStep, b: SimStep) -> np.ndarray:
         window = a.ids[max(v - 8, 0) : v + 9, max(u - 8, 0) : u + 9]
         if obj not in boxes or np.any(window != obj):  # away from silhouette edges
             continue
-        ray = A[:3, :3] @ np.array([(p[0] - CAM.cx) / CAM.fx, (p[1] - CAM.cy) / CAM.fy, 1.0])
+        ray = A[:3, :3] @ np.array([(p[0] - cam.cx) / cam.fx, (p[1] - cam.cy) / cam.fy, 1.0])
         X = _ray_box(boxes[obj], A[:3, 3], ray)
         if X is not None:
             pts.append(p)
             world.append(X)
     P = np.array(pts, np.float32)
-    predicted = CAM.project(np.array(world) @ B_inv[:3, :3].T + B_inv[:3, 3])
+    predicted = cam.project(np.array(world) @ B_inv[:3, :3].T + B_inv[:3, 3])
     crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 0.001)
     found, st, _ = cv2.calcOpticalFlowPyrLK(  # type: ignore[call-overload]
         a.image, b.image, P, None, winSize=(11, 11), maxLevel=2, criteria=crit
@@ -126,7 +135,7 @@ def _lk_errors(drive: SimulatedDrive, a: SimStep, b: SimStep) -> np.ndarray:
 @pytest.mark.parametrize("scenario", ["bend_static", "car_crossing_intersection"])
 def test_static_points_reproject_where_lucas_kanade_finds_them(scenario: str) -> None:
     # the intersection drive's last second: PTU panned, body bounce, car growing in view
-    drive = SimulatedDrive(scenario, seed=3, duration=0.5, effects=Effects.none())
+    drive = SimulatedDrive(scenario, seed=3, duration=0.5, look=_clean(scenario, 3))
     steps = list(drive)
     errors = np.concatenate([_lk_errors(drive, steps[k], steps[k + 1]) for k in range(0, 14, 3)])
     assert len(errors) > 200
@@ -165,7 +174,7 @@ def test_asphalt_seen_diagonally_to_the_world_axes_tracks_as_on_a_straight_road(
     # the bend's last second: heading ~41 deg, so a texture on world axes would be filtered
     # by the bounding box of each pixel's footprint, smeared across the road into streaks
     # (LK off its truth by a median 0.9 px, p90 4.4 px); the road's own strips follow it
-    drive = SimulatedDrive("bend_static", seed=3, duration=1.0, effects=Effects.none())
+    drive = SimulatedDrive("bend_static", seed=3, duration=1.0, look=_clean("bend_static", 3))
     steps = list(drive)
     heading = float(drive.path.pose(drive.tau(steps[0].t))[2])
     assert abs(np.sin(2.0 * heading)) > 0.9

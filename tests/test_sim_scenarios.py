@@ -3,12 +3,15 @@ body bounce, camera effects."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
-from appliance.sim.drive import T0, SimulatedDrive
+from appliance.sim.drive import T0, SimulatedDrive, drive_look
 from appliance.sim.effects import Effects, EffectsPipeline
 from appliance.sim.ego import BodyBounce
+from appliance.sim.look import RANGES, Look
 from appliance.sim.scenarios import SCENARIOS
 from appliance.sim.sensors import PTU_STEP_RAD
 from appliance.sim.truth import project_box
@@ -31,10 +34,31 @@ def _mover_boxes(drive: SimulatedDrive, obj: int) -> np.ndarray:
     return out
 
 
+def _look(name: str, camera: str) -> Look | None:
+    """The seed's own look, or the widest / narrowest camera at the lowest, level mount /
+    highest, most pitched mount, on the roughest body bounce."""
+    if camera == "seed":
+        return None
+    wide = camera == "wide"
+    f = RANGES.fx_px[0] if wide else RANGES.fx_px[1]
+    return dataclasses.replace(
+        drive_look(name, 0),
+        fx=f,
+        fy=f,
+        cx=319.5 + (16.0 if wide else -16.0),
+        cy=239.5 + (12.0 if wide else -12.0),
+        mount_height_m=RANGES.mount_height_m[0 if wide else 1],
+        mount_pitch_rad=RANGES.mount_pitch_rad[0 if wide else 1],
+        bounce_pitch_scale=RANGES.bounce_scale[1],
+        bounce_roll_scale=RANGES.bounce_scale[1],
+    )
+
+
+@pytest.mark.parametrize("camera", ["seed", "wide", "narrow"])
 @pytest.mark.parametrize("name", list(SCENARIOS))
-def test_scenario_is_built_as_described(name: str) -> None:
+def test_scenario_is_built_as_described(name: str, camera: str) -> None:
     sc = SCENARIOS[name]
-    drive = SimulatedDrive(name, seed=0)
+    drive = SimulatedDrive(name, seed=0, look=_look(name, camera))
     speeds = [v for _, v in drive.plan.ego.speed]
     assert all(20 / 3.6 <= v <= 60 / 3.6 for v in speeds)
     assert 8.0 <= drive.duration <= 14.0
@@ -49,15 +73,18 @@ def test_scenario_is_built_as_described(name: str) -> None:
     t = np.array([drive.frame_time(k) for k in range(drive.n_frames)])
     assert t[-1] >= ct > t[-2]
     box = _mover_boxes(drive, drive.truth_header["collision_object"])
-    tall = (box[:, 3] - box[:, 1]) >= 20.0
+    # in view and >= 15 px tall (the benchmark's eligibility) from 3.1 s before the collision on,
+    # with every camera and mount a look can have
+    tall = (box[:, 3] - box[:, 1]) >= 15.0
     first_short = np.flatnonzero(~tall)
     in_view_from = t[first_short[-1] + 1] if len(first_short) else t[0]
-    assert ct - in_view_from >= 2.9  # >= 20 px tall for about 3 s before the collision
+    assert ct - in_view_from >= 3.1
     # constant bearing: between 3 s and 1 s before impact it grows but hardly moves sideways
+    # (8 px at a focal length of 700 px)
     k3, k1 = np.searchsorted(t, ct - 3.0), np.searchsorted(t, ct - 1.0)
     centre = 0.5 * (box[:, 0] + box[:, 2])
     height = box[:, 3] - box[:, 1]
-    assert abs(centre[k1] - centre[k3]) < 8.0
+    assert abs(centre[k1] - centre[k3]) < 8.0 * drive.camera.fx / 700.0
     # a lead car in the same lane closes more slowly than a crossing mover comes near
     assert height[k1] > (1.5 if name == "lead_car_braking" else 2.0) * height[k3]
 
@@ -68,9 +95,11 @@ def test_pedestrian_is_partly_hidden_by_the_parked_car_while_stepping_out() -> N
     for before_s in (3.5, 2.0, 0.3):
         step = drive.snapshot(drive.n_frames - 1 - int(round(before_s * 30)))
         visible[before_s] = step.truth_frame["objects"]["1"]["visible"]
-    assert visible[3.5] > 0.9  # on the sidewalk, in view
-    assert 0.0 < visible[2.0] < 0.5  # crossing the parking lane behind the car: head and shoulders
-    assert visible[0.3] > 0.99
+    # on the sidewalk, mostly in view (the parked car hides more of the legs from a lower
+    # camera); crossing the parking lane behind the car: head and shoulders; then in full view
+    assert visible[3.5] > 0.7
+    assert 0.0 < visible[2.0] < 0.5
+    assert visible[0.3] > 0.97
 
 
 def test_duration_shortens_the_lead_in_and_keeps_the_collision() -> None:
@@ -159,9 +188,3 @@ def test_camera_effects() -> None:
             bars, 0.0, (12.0, 0.0)
         )[:, 40:],
     )  # blur alone draws no random numbers
-    picks = [Effects.random(np.random.default_rng(s)) for s in range(40)]
-    assert all(0.5 <= e.noise_sigma <= 2.0 for e in picks)
-    assert (
-        5 < sum(e.flicker > 0 for e in picks) < 35
-        and 3 < sum(e.blur_exposure > 0 for e in picks) < 30
-    )

@@ -48,6 +48,14 @@ def main(args: argparse.Namespace) -> int:
         f"t {t[0]:.3f}-{t[-1]:.3f} s "
         f"({t[-1] - t[0]:.2f} s)"
     )
+    cam, mount, sim = rec.meta.camera, rec.meta.mount, rec.meta.extra.get("simulator", {})
+    print(
+        f"look: fx {cam.fx:.0f} px, camera {mount.z_m:.2f} m high pitched "
+        f"{mount.pitch_rad:.3f} rad down, {'colour' if sim.get('colour') else 'gray'}, "
+        f"texture contrast {sim.get('texture_contrast', 1.0):.2f}"
+        f"{', plain movers' if sim.get('plain_movers') else ''}, "
+        f"noise {sim.get('noise_sigma', 0.0):.1f} DN"
+    )
     if coll is None:
         print("collision_t: none (no collision)")
     else:

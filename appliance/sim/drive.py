@@ -10,6 +10,7 @@ Recording clock: the first frame is at ``T0 = 1000.0`` s; CAN and PTU start
 
 from __future__ import annotations
 
+import dataclasses
 import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -33,8 +34,9 @@ from appliance.sim.collision import (
     relative_pose,
     relative_velocity,
 )
-from appliance.sim.effects import Effects, EffectsPipeline
+from appliance.sim.effects import EffectsPipeline
 from appliance.sim.ego import BodyBounce, EgoPath, world_from_vehicle
+from appliance.sim.look import Look
 from appliance.sim.materials import TextureBank
 from appliance.sim.movers import SIZES, Trajectory
 from appliance.sim.render import Renderer
@@ -59,8 +61,8 @@ VIDEO_FORMATS = ("mkv", "avi", "png")
 class SimStep:
     """One frame of a simulated drive.
 
-    image: (H, W) uint8 gray; can_messages: frames with timestamps in (previous frame, t]
-    (the first step also gets those before it); ptu_samples: (t, pan_rad, tilt_rad) likewise;
+    image: (H, W) uint8 gray or (H, W, 3) BGR (a colour look); can_messages: frames with
+    timestamps in (previous frame, t] (the first step also gets those before it); ptu_samples: (t, pan_rad, tilt_rad) likewise;
     truth_frame: {"camera_pose": 4x4 world-from-camera, "objects": {id: {bbox, visible,
     pos_vehicle, vel_vehicle}}}; ids: (H, W) uint16 object id of every pixel (0 = road/sky).
     """
@@ -84,13 +86,30 @@ def _r(x: float, nd: int) -> float:
     return float(round(float(x), nd))
 
 
+def _streams(scenario: str, seed: int) -> list[np.random.Generator]:
+    """The drive's independent random streams: 0 timeline, 1 street layout, 3 body bounce,
+    5 sensor noise, 6 CAN and PTU, 7 look (2 and 4 unused)."""
+    seq = np.random.SeedSequence([seed, zlib.crc32(scenario.encode())])
+    return [np.random.default_rng(s) for s in seq.spawn(8)]
+
+
+def drive_look(scenario: str, seed: int, cfg: Config | None = None) -> Look:
+    """The look (camera, mount, materials, bounce, sensor) the drive of ``scenario`` and
+    ``seed`` is seen with, for the image size of ``cfg`` (default ``load_config()``)."""
+    c = (cfg if cfg is not None else load_config()).camera
+    return Look.draw(_streams(scenario, seed)[7], c.width, c.height)
+
+
 class SimulatedDrive:
     """The frames of one scenario (see :mod:`appliance.sim.scenarios`), deterministic per seed.
 
     :param duration: seconds of drive ending at the scenario's end (the collision for
         collision scenarios); default the scenario's own.
-    :param cfg: camera, mount and vehicle outline (default: ``load_config()``).
-    :param effects: camera imperfections; default drawn from the seed.
+    :param cfg: image size, lens distortion, the camera's position on the vehicle and the
+        vehicle outline (default: ``load_config()``); the focal length, principal point,
+        mount height and pitch come from the look.
+    :param look: how the drive is seen (see :mod:`appliance.sim.look`); default drawn from the
+        scenario and seed (:func:`drive_look`).
     :raises UsageError: unknown scenario, negative seed, bad duration.
     """
 
@@ -101,7 +120,7 @@ class SimulatedDrive:
         duration: float | None = None,
         cfg: Config | None = None,
         *,
-        effects: Effects | None = None,
+        look: Look | None = None,
     ) -> None:
         if scenario not in SCENARIOS:
             raise UsageError(f"unknown scenario {scenario!r} (known: {', '.join(SCENARIOS)})")
@@ -113,19 +132,27 @@ class SimulatedDrive:
             )
         self.cfg = cfg if cfg is not None else load_config()
         self.name, self.seed = scenario, seed
-        m = self.cfg.mount
+        c = self.cfg.camera
+        rng = _streams(scenario, seed)
+        self.look = look if look is not None else Look.draw(rng[7], c.width, c.height)
+        lk = self.look
+        self.camera = PinholeCamera(c.width, c.height, lk.fx, lk.fy, lk.cx, lk.cy,
+                                    tuple(c.distortion))
+        self.mount = dataclasses.replace(
+            self.cfg.mount, z_m=lk.mount_height_m, pitch_rad=lk.mount_pitch_rad
+        )
+        m = self.mount
         self.vehicle = Vehicle(m.vehicle_front_m, m.vehicle_rear_m, m.vehicle_width_m, m.x_m, m.y_m)
         self.plan: Plan = SCENARIOS[scenario].make(self.vehicle)
-        streams = np.random.SeedSequence([seed, zlib.crc32(scenario.encode())]).spawn(8)
-        rng = [np.random.default_rng(s) for s in streams]
         self._timeline(duration, rng[0])
         self._world(rng[1])
-        self.bounce = BodyBounce.random(rng[3], self.tau_start - 1.0, self.tau_end + 1.0)
-        self.effects = effects if effects is not None else Effects.random(rng[4])
+        self.bounce = BodyBounce.random(
+            rng[3], self.tau_start - 1.0, self.tau_end + 1.0,
+            lk.bounce_pitch_scale, lk.bounce_roll_scale,
+        )
+        self.effects = lk.effects
         self._effects_seed = int(rng[5].integers(2**63))  # every iteration replays the same noise
         self._sensors(rng[6])
-        c = self.cfg.camera
-        self.camera = PinholeCamera(c.width, c.height, c.fx, c.fy, c.cx, c.cy, tuple(c.distortion))
         self.meta = RecordingMeta(
             camera=self.camera,
             mount=m,
@@ -143,6 +170,7 @@ class SimulatedDrive:
                     "seed": seed,
                     "duration_s": _r(self.duration, 6),
                     "version": __version__,
+                    **lk.table(),
                 }
             },
         )
@@ -199,7 +227,7 @@ class SimulatedDrive:
         self.collision_object = found[0][1] + 1 if found else None
 
     def _world(self, rng_layout: np.random.Generator) -> None:
-        self.bank = TextureBank.for_seed(self.seed)
+        self.bank = TextureBank.for_seed(self.seed, self.look.texture_contrast)
         self.movers = []
         keep = []
         for k, mv in enumerate(self.plan.movers):
@@ -208,7 +236,12 @@ class SimulatedDrive:
                 k + 1,
                 mv.kind,
                 size,
-                box_faces(*size, self.bank.skin(mv.kind, k), self.bank.textures, k + 1),
+                box_faces(
+                    *size,
+                    self.bank.skin(mv.kind, k, self.look.plain_movers),
+                    self.bank.textures,
+                    k + 1,
+                ),
             )
             self.movers.append(Mover(body, mv.trajectory))
             taus = np.arange(self.tau_start - 1.0, self.tau_end + 5.0, 0.05)
@@ -288,7 +321,7 @@ class SimulatedDrive:
         x, y, psi = self.path.pose(tau)
         pitch, roll, heave = self.bounce.at(tau)
         pan, tilt = self.plan.ptu.at(tau)
-        m = self.cfg.mount
+        m = self.mount
         T_wv = world_from_vehicle(
             float(x), float(y), float(psi), float(pitch), float(roll), float(heave)
         )
@@ -382,7 +415,7 @@ class SimulatedDrive:
                 R, _ = relative_motion(prev_pose, T_wc)
                 f = rotational_flow(self.camera, centre, R)[0]
                 motion = (float(f[0]), float(f[1]))
-            image = fx.apply(image, t, motion)
+            image = fx.apply(image, t, motion, ids)
             prev_pose = T_wc
             can_j = can_i
             while can_j < len(self._can) and self._can[can_j].timestamp <= t:
@@ -402,7 +435,7 @@ def simulate(
     video: str = "mkv",
     cfg: Config | None = None,
     *,
-    effects: Effects | None = None,
+    look: Look | None = None,
     progress: bool = False,
 ) -> Path:
     """Write the drive as a recording (spec: "Drive recording") with ``truth.json``.
@@ -416,7 +449,7 @@ def simulate(
         raise UsageError(f"--video must be one of {', '.join(VIDEO_FORMATS)}, got {video!r}")
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise UsageError(f"{out}: output directory exists and is not empty")
-    drive = SimulatedDrive(scenario, seed, duration, cfg, effects=effects)
+    drive = SimulatedDrive(scenario, seed, duration, cfg, look=look)
     from appliance.sim.recorder import write_recording  # (recorder imports this module)
 
     return write_recording(drive, out, video, progress)

@@ -16,6 +16,7 @@ y left, z up, origin on the road below the rear axle).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -132,9 +133,26 @@ class BodyBounce:
     heave: tuple[Oscillation, ...] = ()
 
     @staticmethod
-    def random(rng: np.random.Generator, tau_lo: float, tau_hi: float) -> BodyBounce:
+    def random(
+        rng: np.random.Generator,
+        tau_lo: float,
+        tau_hi: float,
+        pitch_scale: float = 1.0,
+        roll_scale: float = 1.0,
+    ) -> BodyBounce:
         """Road-induced bounce: steady 1-3 Hz pitching of a few tenths of a degree,
-        plus bumps (damped 1.2-2 Hz responses) of up to about one degree."""
+        plus bumps (damped 1.2-2 Hz responses) of up to about one degree; every pitch and
+        roll amplitude times ``pitch_scale`` and ``roll_scale`` (a stiffer or softer car, a
+        smoother or rougher road). The scales change no random draw."""
+        bounce = BodyBounce._random(rng, tau_lo, tau_hi)
+        return BodyBounce(
+            tuple(dataclasses.replace(o, amplitude=pitch_scale * o.amplitude) for o in bounce.pitch),
+            tuple(dataclasses.replace(o, amplitude=roll_scale * o.amplitude) for o in bounce.roll),
+            bounce.heave,
+        )
+
+    @staticmethod
+    def _random(rng: np.random.Generator, tau_lo: float, tau_hi: float) -> BodyBounce:
         deg = np.pi / 180.0
         pitch = [
             Oscillation(

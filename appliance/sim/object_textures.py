@@ -91,36 +91,44 @@ def roof(rng: np.random.Generator) -> Texture:
 # ---------------------------------------------------------------- vehicles, people, poles
 
 
-def car_side(rng: np.random.Generator, body: float) -> U8:
-    """Side of a car, 256 x 84 texels (front to the right), stretched onto the box side."""
+def car_side(rng: np.random.Generator, body: float, plain: bool = False) -> U8:
+    """Side of a car, 256 x 84 texels (front to the right), stretched onto the box side.
+
+    ``plain``: nearly flat paint: tinted glass, door gaps, handles and rims within a few
+    levels of the body, little grain (a dark car with dark glass, a clean one-colour van)."""
     w, h = 256, 84
+    detail = 0.25 if plain else 1.0  # contrast of the details against the paint
     img = np.full((h, w), body, np.float32)
-    img[: int(h * 0.42)] = body - 12.0  # roof pillars and cabin (the box is the car's outline)
+    img[: int(h * 0.42)] = body - 12.0 * detail  # pillars and cabin (the box is the outline)
     glass = np.array([[50, 33], [74, 9], [170, 9], [205, 33]], np.int32)
-    cv2.fillConvexPoly(img, glass, float(rng.uniform(25, 60)))
+    tint = body + rng.uniform(-12, 12) if plain else rng.uniform(25, 60)
+    cv2.fillConvexPoly(img, glass, float(tint))
     cv2.line(img, (122, 8), (122, 34), body, 5)  # B pillar
-    cv2.line(img, (90, 36), (90, 70), body - 35, 1)  # door gaps
-    cv2.line(img, (160, 36), (160, 70), body - 35, 1)
-    cv2.rectangle(img, (100, 44), (110, 46), body + 40, -1)  # handles
-    cv2.rectangle(img, (170, 44), (180, 46), body + 40, -1)
-    img[int(h * 0.78) :] = body - 45  # sill / shadow
+    cv2.line(img, (90, 36), (90, 70), body - 35 * detail, 1)  # door gaps
+    cv2.line(img, (160, 36), (160, 70), body - 35 * detail, 1)
+    cv2.rectangle(img, (100, 44), (110, 46), body + 40 * detail, -1)  # handles
+    cv2.rectangle(img, (170, 44), (180, 46), body + 40 * detail, -1)
+    img[int(h * 0.78) :] = body - 45 * detail  # sill / shadow
+    tyre = 25.0
     for cx in (52, 204):
-        cv2.circle(img, (cx, 70), 14, 25.0, -1)
-        cv2.circle(img, (cx, 70), 7, 150.0, -1)
-        cv2.circle(img, (cx, 70), 2, 60.0, -1)
-    img += 4.0 * pink_noise(rng, (h, w), beta=1.0, low_cut=1.0)
+        cv2.circle(img, (cx, 70), 14, tyre, -1)
+        cv2.circle(img, (cx, 70), 7, tyre + 125 * detail, -1)
+        cv2.circle(img, (cx, 70), 2, tyre + 35 * detail, -1)
+    img += (1.0 if plain else 4.0) * pink_noise(rng, (h, w), beta=1.0, low_cut=1.0)
     return to_u8(cv2.GaussianBlur(img, (0, 0), 0.6))
 
 
-def car_end(rng: np.random.Generator, body: float, front: bool) -> U8:
-    """Front or rear of a car, 96 x 80 texels."""
+def car_end(rng: np.random.Generator, body: float, front: bool, plain: bool = False) -> U8:
+    """Front or rear of a car, 96 x 80 texels (``plain``: see :func:`car_side`; the number
+    plate stays)."""
     w, h = 96, 80
-    img = np.full((h, w), body - 12.0, np.float32)
+    img = np.full((h, w), body - (3.0 if plain else 12.0), np.float32)
+    tint = body + rng.uniform(-12, 12) if plain else rng.uniform(25, 60)
     cv2.fillConvexPoly(
-        img, np.array([[17, 32], [23, 8], [73, 8], [79, 32]], np.int32), float(rng.uniform(25, 60))
+        img, np.array([[17, 32], [23, 8], [73, 8], [79, 32]], np.int32), float(tint)
     )
     img[34:] = body
-    lamp = 230.0 if front else 70.0
+    lamp = (230.0 if front else 70.0) if not plain else body + (25.0 if front else -15.0)
     cv2.rectangle(img, (4, 40), (22, 50), lamp, -1)
     cv2.rectangle(img, (74, 40), (92, 50), lamp, -1)
     if front:
@@ -131,22 +139,28 @@ def car_end(rng: np.random.Generator, body: float, front: bool) -> U8:
     for x in range(36, 60, 5):  # characters
         cv2.rectangle(img, (x, 60), (x + 2, 64), 20.0, -1)
     img[68:] = 30.0  # bumper shadow, tyres
-    img += 3.0 * pink_noise(rng, (h, w), beta=1.0, low_cut=1.0)
+    img += (1.0 if plain else 3.0) * pink_noise(rng, (h, w), beta=1.0, low_cut=1.0)
     return to_u8(cv2.GaussianBlur(img, (0, 0), 0.6))
 
 
-def pedestrian(rng: np.random.Generator, side: bool) -> U8:
-    """A person, 64 x 224 texels (front or side view), stretched onto the box face."""
+def pedestrian(rng: np.random.Generator, side: bool, plain: bool = False) -> U8:
+    """A person, 64 x 224 texels (front or side view), stretched onto the box face.
+
+    ``plain``: clothing of one colour (shirt and trousers within a few levels of each other
+    and of the surroundings the box shows around the person), no stripes, little grain."""
     w, h = 64, 224
     bg = float(rng.uniform(90, 140))
     img = np.full((h, w), bg, np.float32)
     shirt, trousers = float(rng.uniform(30, 230)), float(rng.uniform(20, 120))
+    if plain:
+        shirt = bg + float(rng.uniform(-15, 15))
+        trousers = shirt + float(rng.uniform(-10, 10))
     half = 14 if side else 22
     cx = w // 2
     cv2.ellipse(img, (cx, 16), (9 if side else 11, 14), 0, 0, 360, 190.0, -1)  # head
     cv2.ellipse(img, (cx, 9), (10 if side else 12, 8), 0, 180, 360, 40.0, -1)  # hair
     cv2.rectangle(img, (cx - half, 32), (cx + half, 118), shirt, -1)
-    if rng.random() < 0.5:  # stripes
+    if not plain and rng.random() < 0.5:  # stripes
         for y in range(38, 118, 10):
             cv2.line(img, (cx - half, y), (cx + half, y), 255.0 - shirt, 3)
     if not side:
@@ -155,19 +169,22 @@ def pedestrian(rng: np.random.Generator, side: bool) -> U8:
         cv2.circle(img, (cx - half - 4, 114), 4, 190.0, -1)
         cv2.circle(img, (cx + half + 4, 114), 4, 190.0, -1)
     cv2.rectangle(img, (cx - half + 2, 118), (cx - 2, 210), trousers, -1)
-    cv2.rectangle(img, (cx + 2, 118), (cx + half - 2, 210), trousers + 15, -1)
+    cv2.rectangle(img, (cx + 2, 118), (cx + half - 2, 210), trousers + (3 if plain else 15), -1)
     cv2.rectangle(img, (cx - half, 210), (cx + half, 223), 25.0, -1)  # shoes
-    img += grain(rng, (h, w), 4.0, 0.6)
+    img += grain(rng, (h, w), 1.5 if plain else 4.0, 0.6)
     return to_u8(cv2.GaussianBlur(img, (0, 0), 0.6))
 
 
-def cyclist(rng: np.random.Generator, side: bool) -> U8:
-    """A cyclist, side view 224 x 230 texels or front view 80 x 230."""
+def cyclist(rng: np.random.Generator, side: bool, plain: bool = False) -> U8:
+    """A cyclist, side view 224 x 230 texels or front view 80 x 230 (``plain``: clothing and
+    frame within a few levels of the surroundings, little grain; tyres stay dark)."""
     h = 230
     w = 224 if side else 80
     bg = float(rng.uniform(100, 150))
     img = np.full((h, w), bg, np.float32)
     shirt = float(rng.uniform(30, 230))
+    if plain:
+        shirt = bg + float(rng.uniform(-15, 15))
     if side:
         for cx in (45, 180):
             cv2.circle(img, (cx, 185), 40, 20.0, 4)
@@ -180,21 +197,22 @@ def cyclist(rng: np.random.Generator, side: bool) -> U8:
         frame = np.array(
             [[45, 185], [100, 120], [165, 125], [180, 185], [110, 185], [100, 120]], np.int32
         )
-        cv2.polylines(img, [frame], True, 230.0, 4)
+        cv2.polylines(img, [frame], True, bg + 20.0 if plain else 230.0, 4)
         cv2.rectangle(img, (85, 40), (130, 120), shirt, -1)  # torso
         cv2.circle(img, (140, 28), 16, 190.0, -1)  # head
         cv2.ellipse(img, (140, 20), (18, 12), 0, 180, 360, 60.0, -1)  # helmet
-        cv2.line(img, (125, 55), (165, 110), shirt - 30, 8)  # arm
-        cv2.line(img, (100, 120), (120, 175), 40.0, 9)  # leg
+        cv2.line(img, (125, 55), (165, 110), shirt - (5 if plain else 30), 8)  # arm
+        cv2.line(img, (100, 120), (120, 175), shirt - 5 if plain else 40.0, 9)  # leg
     else:
         cv2.rectangle(img, (36, 110), (44, 229), 20.0, -1)  # wheel seen head-on
-        cv2.rectangle(img, (20, 110), (60, 118), 200.0, -1)  # handlebar
+        cv2.rectangle(img, (20, 110), (60, 118), bg + 20.0 if plain else 200.0, -1)  # handlebar
         cv2.rectangle(img, (22, 40), (58, 120), shirt, -1)
         cv2.circle(img, (40, 26), 15, 190.0, -1)
         cv2.ellipse(img, (40, 18), (17, 11), 0, 180, 360, 60.0, -1)
-        cv2.rectangle(img, (28, 120), (36, 200), 40.0, -1)
-        cv2.rectangle(img, (44, 120), (52, 200), 40.0, -1)
-    img += grain(rng, (h, w), 4.0, 0.6)
+        legs = shirt - 5 if plain else 40.0
+        cv2.rectangle(img, (28, 120), (36, 200), legs, -1)
+        cv2.rectangle(img, (44, 120), (52, 200), legs, -1)
+    img += grain(rng, (h, w), 1.5 if plain else 4.0, 0.6)
     return to_u8(cv2.GaussianBlur(img, (0, 0), 0.6))
 
 

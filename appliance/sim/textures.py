@@ -128,6 +128,21 @@ def make_texture(
     return Texture(name, tuple(levels), wrap, texel_m)
 
 
+def with_contrast(texture: Texture, contrast: float) -> Texture:
+    """The texture with its deviations from its mean scaled by ``contrast`` (clipped to 0-255).
+
+    Applied to every rip-map level: the levels are box-filtered copies of level 0, and the
+    change is affine, so each stays the filtered copy of the new level 0.
+    """
+    if contrast == 1.0:
+        return texture
+    mean = float(texture.levels[0][0].mean())
+    lut = np.clip(np.rint(mean + contrast * (np.arange(256) - mean)), 0, 255).astype(np.uint8)
+    levels = tuple(tuple(np.asarray(cv2.LUT(lev, lut), np.uint8) for lev in row)
+                   for row in texture.levels)
+    return Texture(texture.name, levels, texture.wrap, texture.texel_m)
+
+
 # ---------------------------------------------------------------- noise primitives
 
 

@@ -10,7 +10,7 @@
   included) to the last result.
 
 ``--rounds N`` repeats the pair in ABBA order (the machine is shared: the load average is
-printed before and after). It prints the issue's targets:
+printed before and after). It prints the figures against their targets:
 
 * speed-up: sequential wall / batch wall >= 1.8 with 2 workers;
 * Ray's overhead per task <= 0.5 s: on each worker, the time between a result and the start

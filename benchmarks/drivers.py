@@ -1,7 +1,7 @@
 """Driver figures: vehicle CAN decode throughput, PTU position round trip, HMI send latency.
 
 ``python -m benchmarks drivers [--quick]``. The process is pinned to one CPU (the
-issue's "one core"), so every thread involved (Notifier, sender, simulator) shares
+targets' "one core"), so every thread involved (Notifier, sender, simulator) shares
 it, as on a loaded appliance. Reported side by side in one run:
 
 1. vehicle CAN: frames/s decoded through a python-can ``virtual`` bus, ``Notifier`` and

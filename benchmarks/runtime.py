@@ -7,7 +7,7 @@
    and threads (``replay --realtime``); capture time to warning published on the HMI bus,
    median / p99 / max, and the frames dropped because processing fell behind.
 
-Targets (issue "Runtime"): p99 <= 50 ms, 0 dropped frames; replay faster than real time.
+Targets: p99 <= 50 ms, 0 dropped frames; replay faster than real time.
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ A simulated drive of ``--loop-seconds`` is played live (drivers, ring buffers, t
 over and over, its times shifted by one loop length each round, for ``--minutes``
 minutes of continuous driving. Movers jump back at each loop boundary, which only
 makes the tracker work harder. RSS is read from /proc after the first loop (warm-up)
-and at the end. Target (issue "Runtime"): RSS growth < 10 MB in 10 minutes; no drops
+and at the end. Target: RSS growth < 10 MB in 10 minutes; no drops
 beyond what the overrun counter reports.
 """
 

@@ -33,8 +33,9 @@ MIN_WIDTH_M = 0.8            # m, a road user's width at least searched (a strid
 MAX_CLUSTER_HEIGHT_M = 1.0   # m, the highest a cluster's bottom can sit above the object's foot
 MAX_ROWS = 40                # probe rows at most (the step grows for a long search)
 MIN_STEP_PX = 2.0            # px between probe rows at least
-MIN_TOLERANCE_PX = 1.0       # px, a road point's flow is within this of the road's
+MIN_TOLERANCE_PX = 2.0       # px, a road point's flow is within this of the road's (3 std of LK on blurred, noisy road)
 TOLERANCE = 0.25             # or within this share of the road's flow (speed, pitch, slope errors)
+CLEAR_OFF = 2.0              # a single flow this many tolerances off the road's makes a row the object's
 ROAD_ROWS_END = 2            # road rows in a row that end the object
 MAX_BLIND_M = 0.4            # m of rows without a verdict in a row that end the search
 MIN_DROP = 1e-6              # a ray must point this much below the horizon to meet the road
@@ -127,9 +128,9 @@ def foot_row(p: FootProbe, flow_px: FloatArray, valid_px: NDArray[np.bool_],
     ``flow_px`` (K, 2), ``valid_px`` (K,): the flow vision measured at ``p.points``;
     ``road_px`` (K, 2): the road's flow there (:func:`road_flow`). A measured flow is the
     road's when within ``max(MIN_TOLERANCE_PX, TOLERANCE |road flow|)`` of it. Scanning down
-    from the cluster's bottom, a row with a measured flow off the road's is the object's (a
-    leg is a column of a stride, beside it the road), a row with two or more flows all the
-    road's is road, any other row has no verdict (the legs' flows often fail the
+    from the cluster's bottom, a row with two measured flows off the road's, or one clearly off
+    (``CLEAR_OFF`` tolerances: a leg is a column of a stride, beside it the road), is the
+    object's; a row with two or more flows all the road's is road; any other row has no verdict (the legs' flows often fail the
     forward-backward check). ``ROAD_ROWS_END`` road
     rows in a row end the object, as do ``p.max_blind`` rows without a verdict. The foot is the
     bottom of the last object row.
@@ -145,11 +146,12 @@ def foot_row(p: FootProbe, flow_px: FloatArray, valid_px: NDArray[np.bool_],
     tol = np.maximum(MIN_TOLERANCE_PX, TOLERANCE * np.hypot(*road.transpose(2, 0, 1)))
     off = ok & (miss > tol)
     on = ok & ~(miss > tol)
+    clear = ok & (miss > CLEAR_OFF * tol)
     last: int | None = None
     road_run = blind = 0
     for r in range(n_rows):
         n_off, n_on = int(off[r].sum()), int(on[r].sum())
-        if n_off >= 1:
+        if n_off >= 2 or clear[r].any():
             last, road_run, blind = r, 0, 0
         elif n_off == 0 and n_on >= 2:
             road_run, blind = road_run + 1, 0

@@ -133,10 +133,6 @@ def test_extended_keeps_bottom_and_width() -> None:
     out = extended(tr, 180.0)
     assert out.bbox == pytest.approx((302.0, 180.0, 338.0, 300.0))
     assert extended(tr, 295.0) is tr      # below the box top: unchanged
-    # down to a foot found below the box (decision/foot_search.py), the top kept
-    assert extended(tr, None, 330.0).bbox == pytest.approx((302.0, 290.0, 338.0, 330.0))
-    assert extended(tr, 180.0, 330.0).bbox == pytest.approx((302.0, 180.0, 338.0, 330.0))
-    assert extended(tr, None, 299.0) is tr
 
 
 def test_the_outline_flows_measure_the_expansion(default_config: Config) -> None:

@@ -115,7 +115,9 @@ def decide(state: DecisionState, obs: Observation, flows: Mapping[ProbeKey, Poin
             lost = tuple(lt for lt in lost if lt is not found)
             tracks[i] = tr = replace(tr, id=found.id)
         if tr.confirmed:
-            threats.append(assess(shown(tr, cues[tr.uid]), cues[tr.uid], f, cfg.warning))
+            outline = cues[tr.uid].get("outline")
+            threats.append(assess(shown(tr, None if outline is None else outline.top),
+                                  cues[tr.uid], f, cfg.warning))
     threats = pool_covered(threats)
     lost, hidden = hidden_threats(lost, obs.probes, measured, f, cfg.hidden, cfg.warning)
     threats.extend(hidden)

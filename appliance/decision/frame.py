@@ -148,15 +148,6 @@ def contact_of(c: Cluster, f: FrameContext, model: GroundModel) -> GroundContact
     return ground_contact(camera, (0.5 * (u0 + u1), foot - 0.5), pose, model)
 
 
-def contact_at(c: Cluster, f: FrameContext, model: GroundModel, foot_v: float
-               ) -> GroundContact | None:
-    """The ground contact of a cluster whose object's foot was found at row ``foot_v`` below
-    it (``cues/foot.py``), at the middle of its box."""
-    u0, _, u1, _ = c.bbox
-    return ground_contact(f.camera, (0.5 * (u0 + u1), min(foot_v, float(f.camera.height)) - 0.5),
-                          f.pose, model)
-
-
 def measure_track(track: ImageTrack, f: FrameContext, model: GroundModel) -> TrackMeasurement:
     """What this frame measured of ``track`` (:class:`TrackMeasurement`)."""
     c = track.cluster

@@ -148,14 +148,11 @@ def outline(p: OutlineProbe | None, flow_px: FloatArray | None, valid_px: NDArra
                    flows=raw[: last + 1][use])
 
 
-def extended(track_: ImageTrack, top: float | None, bottom: float | None = None) -> ImageTrack:
-    """``track_`` with its box reaching up to row ``top`` and down to row ``bottom`` (None:
-    that edge kept; the width is kept)."""
+def extended(track_: ImageTrack, top: float) -> ImageTrack:
+    """``track_`` with its box reaching up to row ``top`` (bottom and width kept)."""
     _, v0, _, v1 = track_.bbox
-    new_v0 = v0 if top is None else min(top, v0)
-    new_v1 = v1 if bottom is None else max(bottom, v1)
-    if new_v0 == v0 and new_v1 == v1:
+    if top >= v0:
         return track_
     x = track_.x.copy()
-    x[1, 0] = 0.5 * (new_v0 + new_v1)
-    return replace(track_, x=x, size=(track_.size[0], new_v1 - new_v0))
+    x[1, 0] = 0.5 * (top + v1)
+    return replace(track_, x=x, size=(track_.size[0], v1 - top))

@@ -1,8 +1,7 @@
 """The track's 3-D state on the road, from its ground contact (``ground_state.py``).
 
 Every frame the state is predicted with the ego motion from CAN removed (coasting at
-constant velocity while the track has no contact); a ground contact (at the object's foot
-where the foot cue found it below the cluster, else at the cluster's bottom) then updates it, or
+constant velocity while the track has no contact); a ground contact then updates it, or
 starts it, with its velocity across the line of sight from the bearing rate
 (:func:`ground_state.velocity_prior`). A new track whose first contact continues a hidden
 one (``x.found``) takes that one's coasted state. Without a contact for ``coast_s`` the
@@ -16,7 +15,6 @@ from typing import ClassVar
 
 from appliance.config import GroundCueConfig
 from appliance.decision.cues.base import CueInput
-from appliance.decision.frame import contact_at
 from appliance.decision.ground_state import (
     GroundModel,
     GroundTrack,
@@ -52,9 +50,6 @@ class GroundContact:
             # no contact in the frame before: coasting, at constant velocity
             g = ground_predict(g, f.dt, f.sensors, model, steady=f.t - g.t_update > 1.5 * f.dt)
         contact = x.meas.contact
-        foot = x.now.get("foot")
-        if contact is not None and foot is not None and x.track.cluster is not None:
-            contact = contact_at(x.track.cluster, f, model, foot.v)
         if contact is not None:
             if x.found is not None and x.found.ground is not None:
                 # the occluded object is back: its coasted state takes the contact

@@ -9,11 +9,10 @@ of road: ``warning.min_height_m``).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import ClassVar
 
-from appliance.decision.cues.base import CueInput, TrackCues
+from appliance.decision.cues.base import CueInput
 from appliance.decision.object_extent import extended
 from appliance.decision.tracking import ImageTrack
 from appliance.vision.geometry import PinholeCamera
@@ -39,12 +38,9 @@ def clip_box(box: tuple[float, float, float, float], camera: PinholeCamera
             round(min(max(u1, 0.0), w), 1), round(min(max(v1, 0.0), h), 1))
 
 
-def shown(track: ImageTrack, cues: Mapping[str, Any] | TrackCues) -> ImageTrack:
-    """The track as reported: its box reaching up to its outline's top and down to its foot
-    (the states of the outline and foot cues in ``cues``, where they have one)."""
-    outline, foot = cues.get("outline"), cues.get("foot")
-    return extended(track, None if outline is None else outline.top,
-                    None if foot is None else foot.v)
+def shown(track: ImageTrack, outline_top: float | None) -> ImageTrack:
+    """The track as reported: its box reaching up to its outline's top."""
+    return track if outline_top is None else extended(track, outline_top)
 
 
 class Peaks:
@@ -60,7 +56,9 @@ class Peaks:
         if tr.confirmed and tr.cluster is not None and g is not None:
             depth = float(g.position[0] - f.mount.x_m)
             if depth > 0.0:
-                _, v0, _, v1 = clip_box(shown(tr, x.now).bbox, f.camera)
+                outline = x.now.get("outline")
+                _, v0, _, v1 = clip_box(shown(tr, None if outline is None else outline.top).bbox,
+                                          f.camera)
                 height = (v1 - v0) * depth / f.camera.fy
                 peak = max(peak, height)
         return PeakState(probability=max(prev.probability, float(tr.probability)),

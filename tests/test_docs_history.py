@@ -31,8 +31,9 @@ HISTORY = {
                            r"|\bthe\s+task\s+(?:says|said|asks|asked|wants|requires|statement"
                            r"|description)\b", re.IGNORECASE),
     "not kept": re.compile(r"\bnot\s+kept\b", re.IGNORECASE),
-    # a git hash: 7-40 lowercase hex digits with at least one digit and one letter
-    "commit hash": re.compile(r"\b(?=[0-9a-f]*[0-9])(?=[0-9a-f]*[a-f])[0-9a-f]{7,40}\b"),
+    # a git hash: 7-40 lowercase hex digits with at least one digit and one letter (not the
+    # code digest a results page names its code by, as summary.json's code_digest does)
+    "commit hash": re.compile(r"(?<!digest `)\b(?=[0-9a-f]*[0-9])(?=[0-9a-f]*[a-f])[0-9a-f]{7,40}\b"),
 }
 
 
@@ -109,6 +110,7 @@ def test_the_checker_catches_each_pattern(text: str, pattern: str) -> None:
     "a session of live driving; the rounds of the counter",
     "a deadbeef marker and a 1234567 frame count",
     "kept while the TTC stays within threshold",
+    "Measured with code digest `84f9e224c6e74148` (the `code_digest` in every run's",
 ])
 def test_the_checker_leaves_ordinary_words_alone(text: str) -> None:
     assert history_words(text) == []

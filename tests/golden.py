@@ -18,7 +18,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -31,7 +30,6 @@ from appliance.recording import Recording, apply_meta
 from appliance.replay import replay
 from appliance.sim.drive import simulate
 
-ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(__file__).parent / "data" / "golden"
 # name: (scenario, seed, duration s)
 GOLDEN = {
@@ -62,22 +60,13 @@ def read_warnings(run_dir: Path) -> list[dict[str, Any]]:
 
 
 def run_golden(name: str, workdir: Path) -> list[dict[str, Any]]:
-    """One golden drive simulated and replayed in a fresh interpreter, as ``collision-warning
-    simulate`` and ``replay`` run and as the references were made; its warnings. In the test
-    process, after hundreds of other tests, lead_car_braking-0 once came out with its level 2
-    five frames early (not found why); a fresh process gave the reference in every run."""
-    code = (f"import sys; from pathlib import Path; sys.path.insert(0, {str(ROOT)!r}); "
-            f"from tests.golden import run_here; run_here({name!r}, Path({str(workdir)!r}))")
-    subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)
-    return read_warnings(workdir / f"{name}-run")
-
-
-def run_here(name: str, workdir: Path) -> None:
-    """:func:`run_golden`'s work, in this process."""
+    """One golden drive simulated and replayed in this process; its warnings."""
     rec_dir = simulate_golden(name, workdir)
     cfg = load_config()
     rec = Recording(rec_dir, defaults=cfg)
-    replay(rec, apply_meta(cfg, rec.meta), workdir / f"{name}-run")
+    out = workdir / f"{name}-run"
+    replay(rec, apply_meta(cfg, rec.meta), out)
+    return read_warnings(out)
 
 
 def run_all(workdir: Path) -> dict[str, list[dict[str, Any]]]:

@@ -339,7 +339,7 @@ def _stopped_car(v: Vehicle, speed_kmh: float, lateral_m: float) -> Plan:
     car = Trajectory(((-30.0, x, lateral_m), (T + 60.0, x, lateral_m)))
     label = "car standing in the lane" if lateral_m == 0.0 else "car standing in the next lane"
     end = None if lateral_m == 0.0 else T + 0.5
-    return Plan(EgoPlan(speed=((0.0, v0),)), duration_s=7.0, end_s=end,
+    return Plan(EgoPlan(speed=((0.0, v0),)), duration_s=8.0, end_s=end,
                 movers=(MoverPlan("car", car, label),))
 
 
@@ -351,7 +351,7 @@ def car_stopped_in_lane_30(v: Vehicle) -> Plan:
 
 
 def car_stopped_in_lane_60(v: Vehicle) -> Plan:
-    """The same at 60 km/h (the car is 117 m ahead at the start, 40 m at 2.4 s before contact)."""
+    """The same at 60 km/h (the car is 133 m ahead at the start, 40 m at 2.4 s before contact)."""
     return _stopped_car(v, 60.0, 0.0)
 
 

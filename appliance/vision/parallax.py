@@ -46,7 +46,8 @@ SEED_RANGE_M = (12.0, 90.0)  # m ahead of the bumper: corners are seeded in this
                              # its image holds the whole scene above the road behind it)
 CORRIDOR_SEED_M = 0.6    # m, seeded this much wider than the vehicle on each side
 LINK_STD_PX = 0.12       # px, the error one chained LK step adds to a track (random walk)
-MIN_PARALLAX_PX = 0.3    # px, below this a point's depth is not computed (at or near the epipole)
+MIN_PARALLAX_PX = 0.3    # px, below this a point's depth is not computed
+MIN_EPIPOLE_DISTANCE_PX = 12.0   # px, nor within this of the epipole (likelihood.py's radius)
 
 
 @dataclass(frozen=True)
@@ -237,9 +238,12 @@ def standing_points(state: PathPoints, camera: PinholeCamera) -> StandingPoints:
         now_px = camera.undistort(now)
         r_then = np.linalg.norm(then_px - epx, axis=1)
         r_now = np.linalg.norm(now_px - epx, axis=1)
-        parallax = np.abs(r_now - r_then)
+        # driving forward, a static point moves away from the epipole (a lead car driving
+        # away moves towards it); near the epipole every motion is radial, and none tells
+        parallax = r_now - r_then
         sigma = LINK_STD_PX * math.sqrt(float(k))
-        ok = np.isfinite(z) & (z > 0.0) & (parallax >= MIN_PARALLAX_PX)
+        ok = np.isfinite(z) & (z > 0.0) & (parallax >= MIN_PARALLAX_PX) \
+            & (r_then >= MIN_EPIPOLE_DISTANCE_PX) & (t[2] < 0.0)
         pixels.append(now[ok])
         points.append(x_now[ok] * z[ok, None])
         stds.append(z[ok] * sigma / parallax[ok])

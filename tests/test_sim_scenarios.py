@@ -78,7 +78,9 @@ def test_scenario_is_built_as_described(name: str, camera: str) -> None:
     tall = (box[:, 3] - box[:, 1]) >= 15.0
     first_short = np.flatnonzero(~tall)
     in_view_from = t[first_short[-1] + 1] if len(first_short) else t[0]
-    assert ct - in_view_from >= 3.1
+    # a car standing in the lane at 60 km/h is 15 px tall 43 m ahead with the widest lens:
+    # 2.4 s before contact, when the first warning is due
+    assert ct - in_view_from >= (2.4 if name.startswith("car_stopped_in_lane") else 3.1)
     # constant bearing: between 3 s and 1 s before impact it grows but hardly moves sideways
     # (8 px at a focal length of 700 px)
     k3, k1 = np.searchsorted(t, ct - 3.0), np.searchsorted(t, ct - 1.0)

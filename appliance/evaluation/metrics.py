@@ -20,7 +20,9 @@ Definitions (what a validation engineer expects):
   (at least 3); a track that never matched a mover is a track on a static object
   or on nothing.
 * **Colliding object:** ``collision_object`` of the truth when given, else the
-  mover whose truth position is closest to the ego outline at ``collision_t``.
+  mover whose truth position is closest to the ego outline at ``collision_t``. A standing
+  object named there (a car stopped in the lane) counts as a mover for the matches, the
+  warnings and the errors below, but has no eligible frames (it never moves).
 * **Lead time:** ``collision_t`` minus the first level-2 event on the colliding
   object at or before ``collision_t``; null when there was none (a missed
   warning). A warning is on an object when its box matches the object's truth
@@ -236,13 +238,17 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
         by_frame[tr.frame].append(tr)
     movers = [o for o in truth.objects if o.moving]
     ego = ego_motion(truth.objects)
+    # a standing object the drive collides with (a car stopped in the lane) is scored like a
+    # mover for the warnings, TTC and distance, but has no detection delay (it never moves)
+    standing = [o for o in truth.objects if not o.moving and truth.collision
+                and o.id == truth.collision_object]
 
     # per frame, the best-matching track of every mover; attribution of track ids; the
     # tracks that were ever on a mover (the others are ghosts)
-    match: dict[int, dict[int, TrackRow]] = {o.id: {} for o in movers}
+    match: dict[int, dict[int, TrackRow]] = {o.id: {} for o in movers + standing}
     votes: dict[int, Counter[int]] = defaultdict(Counter)
     on_mover: set[int] = set()
-    for o in movers:
+    for o in movers + standing:
         for i, f in enumerate(o.frames):
             box = clip_box(o.bbox[i], width, height)
             best, best_iou = None, IOU_MATCH
@@ -287,7 +293,7 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
     ct = truth.collision_t if truth.collision else None
     colliding = None
     if ct is not None:
-        named = [o for o in movers if o.id == truth.collision_object]
+        named = [o for o in movers + standing if o.id == truth.collision_object]
         colliding = named[0] if named else _colliding_object(movers, ct, frame_times, mount)
 
     def on_object(w: WarningRow, o: TruthObject) -> bool:
@@ -320,7 +326,7 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
         return matched_in(range(hidden_from - ATTRIBUTION_WINDOW, hidden_from))
 
     if truth.collision:
-        false_l2 = [w for w in l2_onsets if not any(on_object(w, o) for o in movers)]
+        false_l2 = [w for w in l2_onsets if not any(on_object(w, o) for o in movers + standing)]
     else:
         false_l2 = list(l2_onsets)
     first_l2_t = None

@@ -333,6 +333,34 @@ def pedestrian_passes_behind(v: Vehicle) -> Plan:
     return _passing(v, False)
 
 
+def _stopped_car(v: Vehicle, speed_kmh: float, lateral_m: float) -> Plan:
+    v0, T = speed_kmh * KMH, 7.0
+    x = v.front + v0 * T + SIZES["car"][0] / 2   # the ego's bumper meets the car's rear at T
+    car = Trajectory(((-30.0, x, lateral_m), (T + 60.0, x, lateral_m)))
+    label = "car standing in the lane" if lateral_m == 0.0 else "car standing in the next lane"
+    end = None if lateral_m == 0.0 else T + 0.5
+    return Plan(EgoPlan(speed=((0.0, v0),)), duration_s=8.0, end_s=end,
+                movers=(MoverPlan("car", car, label),))
+
+
+def car_stopped_in_lane_30(v: Vehicle) -> Plan:
+    """Euro NCAP CCRs / NHTSA FCW test 1 at 30 km/h: a car stands in the ego lane; the ego
+    drives at it at constant speed and does not brake. Nothing in the scene moves: the car
+    is found from motion parallax alone (it stands up from the road)."""
+    return _stopped_car(v, 30.0, 0.0)
+
+
+def car_stopped_in_lane_60(v: Vehicle) -> Plan:
+    """The same at 60 km/h (the car is 133 m ahead at the start, 40 m at 2.4 s before contact)."""
+    return _stopped_car(v, 60.0, 0.0)
+
+
+def car_stopped_next_lane(v: Vehicle) -> Plan:
+    """No collision: a car stands in the next lane to the left (3.5 m), the ego passes it at
+    50 km/h."""
+    return _stopped_car(v, 50.0, 3.5)
+
+
 def _scenario(fn: Callable[[Vehicle], Plan], collision: bool, description: str) -> Scenario:
     return Scenario(fn.__name__, description, collision, fn, " ".join((fn.__doc__ or "").split()))
 
@@ -361,6 +389,16 @@ SCENARIOS: dict[str, Scenario] = {
             "collision: lead car 12 m ahead brakes at 2 m/s^2 from 50 km/h (CCRb), ego does not",
         ),
         _scenario(
+            car_stopped_in_lane_30,
+            True,
+            "collision: car standing in the lane, ego 30 km/h does not brake (CCRs)",
+        ),
+        _scenario(
+            car_stopped_in_lane_60,
+            True,
+            "collision: car standing in the lane, ego 60 km/h does not brake (CCRs)",
+        ),
+        _scenario(
             pedestrian_stops_at_kerb,
             False,
             "no collision: pedestrian on a collision course stops at the kerb, 30 km/h",
@@ -382,6 +420,11 @@ SCENARIOS: dict[str, Scenario] = {
             lead_car_driving_away,
             False,
             "no collision: lead car 12 m ahead accelerates away, 45 km/h",
+        ),
+        _scenario(
+            car_stopped_next_lane,
+            False,
+            "no collision: car standing in the next lane, passed at 50 km/h",
         ),
         _scenario(
             pedestrian_passes_front,

@@ -213,13 +213,6 @@ class CueConfig:
 
 
 @dataclass(frozen=True)
-class ObstacleConfig:
-    min_height_m: float = _p(0.0, 10.0)
-    clearance_m: float = _p(0.0, 20.0, lo_open=True)
-    min_points: int = _p(1, 1000)
-
-
-@dataclass(frozen=True)
 class HiddenConfig:
     keep_s: float = _p(0.0, 10.0)
     warn_s: float = _p(0.0, 10.0)
@@ -264,7 +257,6 @@ class Config:
     clustering: ClusteringConfig
     tracking: TrackingConfig
     cue: CueConfig
-    obstacle: ObstacleConfig
     hidden: HiddenConfig
     warning: WarningConfig
     runtime: RuntimeConfig

@@ -88,24 +88,6 @@ class ParticleSet:
 
 
 @dataclass(frozen=True)
-class StandingPoints:
-    """Static-scene points in the image of the ego corridor, their depth from motion parallax
-    over several frames (``vision/parallax.py``).
-
-    pixels: (N, 2) px in the current frame; points: (N, 3) m in the current camera frame
-    (z: depth), as if static; depth_std: (N,) m; epipolar_px: (N,) px, the point's distance
-    from its epipolar line over the baseline (large: it does not move as the static scene
-    does); baseline: (N,) frames the parallax was measured over.
-    """
-
-    pixels: NDArray[np.float64]
-    points: NDArray[np.float64]
-    depth_std: NDArray[np.float64]
-    epipolar_px: NDArray[np.float64]
-    baseline: NDArray[np.int64]
-
-
-@dataclass(frozen=True)
 class ProbabilityMap:
     """Spatio-temporally filtered probability of independent motion, p(x) (section 4).
 

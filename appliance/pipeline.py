@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,11 +30,9 @@ from appliance.messages import (
     ParticleSet,
     ProbabilityMap,
     SensorSample,
-    StandingPoints,
     StepOutput,
 )
 from appliance.vision.geometry import PinholeCamera
-from appliance.vision.parallax import PathPoints, empty_path_points, no_points, track_path_points
 from appliance.vision.perception import VisionState, check_frame, init_vision_state, perceive
 from appliance.vision.probes import measure_points
 
@@ -47,7 +45,6 @@ class PipelineState:
     decision: DecisionState
     prob_map: ProbabilityMap | None
     frames: int = 0
-    path: PathPoints = field(default_factory=empty_path_points)
 
 
 def camera_from_config(cfg: Config) -> PinholeCamera:
@@ -73,14 +70,12 @@ def decision_step(
     cfg: Config,
     camera: PinholeCamera,
     images: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None,
-    standing: StandingPoints | None = None,
 ) -> tuple[DecisionState, DecisionOutput]:
     """The decision stage of one frame: :func:`decide.observe`, the flow vision measures at the
     pixels it asks about (outlines, hidden tracks) in ``images`` (the previous and this frame,
     8-bit gray; None: nothing is measured), then :func:`decide.decide`. Decision never sees
-    the images. ``standing``: the corridor's static points with their depths from parallax
-    (``vision/parallax.py``), for the obstacle in the path."""
-    obs = observe(state, frame_index, t, particles, ego, sensors, cfg, camera, standing)
+    the images."""
+    obs = observe(state, frame_index, t, particles, ego, sensors, cfg, camera)
     flows = None
     if images is not None:
         flows = measure_points(images[0], images[1], obs.requests(), ego.rotation, camera,
@@ -102,16 +97,10 @@ def step(
     vision, ego, particles = perceive(state.vision, frame, sensors, state.prob_map, cfg, camera)
     t1 = clock()
     pair = None
-    path, standing = state.path, no_points()
-    prev = state.vision
-    if prev.prev_image is not None and vision.prev_image is not None \
-            and prev.prev_sensors is not None:
-        pair = (prev.prev_image, vision.prev_image)
-        path, standing = track_path_points(path, prev.prev_image, vision.prev_image, ego, sensors,
-                                           prev.prev_sensors, frame.t - prev.prev_t,
-                                           vision.attitude, cfg, camera)
+    if state.vision.prev_image is not None and vision.prev_image is not None:
+        pair = (state.vision.prev_image, vision.prev_image)
     decision, out = decision_step(state.decision, frame.index, frame.t, particles, ego, sensors,
-                                  cfg, camera, pair, standing)
+                                  cfg, camera, pair)
     t2 = clock()
     result = StepOutput(
         frame=frame.index,
@@ -124,7 +113,6 @@ def step(
         stage_ms={"vision": (t1 - t0) * 1e3, "decision": (t2 - t1) * 1e3, "total": (t2 - t0) * 1e3},
     )
     new_state = PipelineState(
-        vision=vision, decision=decision, prob_map=out.prob_map, frames=state.frames + 1,
-        path=path,
+        vision=vision, decision=decision, prob_map=out.prob_map, frames=state.frames + 1
     )
     return new_state, result, out

@@ -417,3 +417,25 @@ def test_a_narrow_track_on_a_mover_is_no_ghost(tmp_path: Path, default_config: C
     r = evaluate_run(rec, write_run(tmp_path / "run", tracks, []))
     assert r["objects"][0]["first_detection_frame"] is None     # no IoU match at all
     assert (r["ghost_tracks"], r["ghost_track_frames"]) == (1, 6)
+
+
+def test_a_standing_object_the_drive_collides_with_is_scored_like_a_mover(
+        tmp_path: Path, default_config: Config) -> None:
+    # a car stopped in the lane: not moving, named as the collision object
+    rec = write_recording(tmp_path / "rec", default_config)
+    t = json.loads((rec / "truth.json").read_text())
+    t["objects"][0]["moving"] = False
+    t["objects"][0]["class"] = "car"
+    t["collision_object"] = 1
+    (rec / "truth.json").write_text(json.dumps(t))
+    r = evaluate_run(rec, collision_run(tmp_path / "run"), plot=False)
+    assert r["colliding_object"] == 1
+    assert r["lead_time_s"] == pytest.approx(2.5 - 41 / FPS, abs=1e-3)
+    assert r["false_level2"] == 1            # only the one on the static scene
+    assert r["ttc_rel_error_median"] == pytest.approx(0.1, abs=1e-3)
+    assert r["objects"] == [] and r["targets"]["detection"] is None   # it never moves
+    # without that name it is static scenery like any parked car: no colliding object
+    del t["collision_object"]
+    (rec / "truth.json").write_text(json.dumps(t))
+    r = evaluate_run(rec, tmp_path / "run", plot=False)
+    assert r["colliding_object"] is None and r["false_level2"] == 2

@@ -50,9 +50,7 @@ class TrackThreat:
     report: its row of ``tracks.jsonl`` (ttc_s None: no contact predicted, or unknown);
     on_course: its path meets the corridor (``warning.corridor_margin_m``); on_course_wide: the
     corridor widened by ``CORRIDOR_HYSTERESIS_M``; miss_m: by how much its path misses the
-    corridor, where known; moving: it has shown independent motion over ground; standing: an
-    obstacle standing in the path (``obstacle.py``: static, found from motion parallax); max_level:
-    the highest level it may raise; speed_m_s: its
+    corridor, where known; moving: it has shown independent motion over ground; speed_m_s: its
     speed over ground (None without a 3-D state); height_m: the tallest its box has been at its
     depth, None where its depth is unknown; coasted: a hidden track assessed from its coasted
     3-D state; evidence: the probability tested against ``min_probability`` when it is not the
@@ -63,8 +61,6 @@ class TrackThreat:
     on_course_wide: bool
     miss_m: float | None = None
     moving: bool = True
-    standing: bool = False
-    max_level: int = 2
     speed_m_s: float | None = None
     height_m: float | None = None
     coasted: bool = False

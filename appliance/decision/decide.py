@@ -9,9 +9,8 @@ between (decision never sees an image):
    (``cues/``) and the hidden-track tests (occlusion.py) need this frame.
 2. :func:`decide`, with the flow vision measured there: per track, every cue of ``CUES`` in
    order (3-D state, scale change, ...); per confirmed track its threat (assess.py); the
-   hidden tracks still covered, from their coasted states; anything standing in the path,
-   from the corridor's points and their depths from parallax (obstacle.py); then the warning
-   levels, and each track's reason (warnings.py).
+   hidden tracks still covered, from their coasted states; then the warning levels, and each
+   track's reason (warnings.py).
 
 Time is an argument, nothing is read from a clock and there is no randomness: a replay is
 deterministic.
@@ -33,19 +32,12 @@ from appliance.decision.frame import FrameContext, finite, measure_track
 from appliance.decision.ground_state import camera_pose, update_body_pitch
 from appliance.decision.hidden import hidden_probes, hidden_threats
 from appliance.decision.lost_tracks import coast_lost, reacquire
-from appliance.decision.obstacle import obstacle_step
 from appliance.decision.occlusion import CoastProbe
 from appliance.decision.probability_map import empty_map, spatio_temporal_filter
 from appliance.decision.state import DecisionOutput, DecisionState, Observation, ProbeKey
 from appliance.decision.tracking import ImageModel, TrackerState, track_step
 from appliance.decision.warnings import WarningState, pool_covered, warning_step
-from appliance.messages import (
-    EgoMotion,
-    ParticleSet,
-    ProbabilityMap,
-    SensorSample,
-    StandingPoints,
-)
+from appliance.messages import EgoMotion, ParticleSet, ProbabilityMap, SensorSample
 from appliance.vision.geometry import PinholeCamera
 from appliance.vision.probes import PointFlow
 
@@ -67,8 +59,8 @@ def init_decision_state(cfg: Config, camera: PinholeCamera) -> DecisionState:
 
 
 def observe(state: DecisionState, frame_index: int, t: float, particles: ParticleSet,
-            ego: EgoMotion, sensors: SensorSample, cfg: Config, camera: PinholeCamera,
-            standing: StandingPoints | None = None) -> Observation:
+            ego: EgoMotion, sensors: SensorSample, cfg: Config, camera: PinholeCamera
+            ) -> Observation:
     """Step 1 of a frame (module docstring): p(x), clusters, tracks, hidden tracks, probes."""
     dt = (t - state.t) if state.t is not None and t > state.t else 1.0 / cfg.camera.fps
     body_pitch = state.body_pitch
@@ -92,8 +84,7 @@ def observe(state: DecisionState, frame_index: int, t: float, particles: Particl
             asked[("cue", tr.uid, name)] = p
     asked.update(hidden_probes(lost, frame, cfg.hidden))
     return Observation(frame_index=frame_index, frame=frame, body_pitch=body_pitch, prob=prob,
-                       clusters=clusters, tracker=tracker, lost=lost, probes=asked,
-                       standing=standing)
+                       clusters=clusters, tracker=tracker, lost=lost, probes=asked)
 
 
 def decide(state: DecisionState, obs: Observation, flows: Mapping[ProbeKey, PointFlow] | None,
@@ -128,14 +119,6 @@ def decide(state: DecisionState, obs: Observation, flows: Mapping[ProbeKey, Poin
             threats.append(assess(shown(tr, None if outline is None else outline.top),
                                   cues[tr.uid], f, cfg.warning))
     threats = pool_covered(threats)
-    movers = [th.report.bbox for th in threats if th.moving]
-    tracker = replace(obs.tracker, tracks=tuple(tracks))
-    obstacle, standing, next_id = obstacle_step(
-        state.obstacle, obs.standing, f, obs.prob, cfg.probability_map.scale, movers,
-        cfg.obstacle, cfg.warning, tracker.next_id)
-    tracker = replace(tracker, next_id=next_id)
-    if standing is not None:
-        threats.append(standing)
     lost, hidden = hidden_threats(lost, obs.probes, measured, f, cfg.hidden, cfg.warning)
     threats.extend(hidden)
     threats.sort(key=lambda th: th.report.id)
@@ -143,9 +126,10 @@ def decide(state: DecisionState, obs: Observation, flows: Mapping[ProbeKey, Poin
         state.warning, tuple(threats), f.t, obs.frame_index, cfg.warning, frame_dt=f.dt,
         released=frozenset(lt.id for lt in lost if lt.off_course),
         hidden_max_level=cfg.hidden.max_level)
+    tracker = replace(obs.tracker, tracks=tuple(tracks))
     new_state = DecisionState(prob=obs.prob, tracker=tracker, cues=cues, warning=warning,
                               body_pitch=obs.body_pitch, pose=f.pose, t=f.t, model=state.model,
-                              lost=lost, odo=f.odo, obstacle=obstacle)
+                              lost=lost, odo=f.odo)
     out = DecisionOutput(
         prob_map=ProbabilityMap(p=obs.prob, scale=cfg.probability_map.scale),
         clusters=obs.clusters,

@@ -12,11 +12,10 @@ from appliance.decision.cues import Probe, TrackCues
 from appliance.decision.frame import FrameContext
 from appliance.decision.ground_state import CameraPose
 from appliance.decision.lost_tracks import LostTrack
-from appliance.decision.obstacle import ObstacleState
 from appliance.decision.occlusion import CoastProbe
 from appliance.decision.tracking import ImageModel, TrackerState
 from appliance.decision.warnings import WarningState
-from appliance.messages import ProbabilityMap, StandingPoints, TrackReport, WarningEvent
+from appliance.messages import ProbabilityMap, TrackReport, WarningEvent
 from appliance.vision.geometry import FloatArray
 
 # a probe's key: ("cue", track uid, cue name) or ("cover" / "course", hidden track id, "")
@@ -36,7 +35,6 @@ class DecisionState:
     t: float | None
     lost: tuple[LostTrack, ...] = ()
     odo: tuple[float, float, float] = (0.0, 0.0, 0.0)  # vehicle x, y (m), heading (rad), odometry frame
-    obstacle: ObstacleState = field(default_factory=ObstacleState)
 
 
 @dataclass(frozen=True)
@@ -53,7 +51,6 @@ class Observation:
     tracker: TrackerState
     lost: tuple[LostTrack, ...]
     probes: dict[ProbeKey, Probe | CoastProbe]
-    standing: StandingPoints | None = None
 
     def requests(self) -> dict[ProbeKey, FloatArray]:
         """The pixels (M, 2) of the current frame whose flow each probe needs."""

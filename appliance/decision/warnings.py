@@ -15,8 +15,6 @@ predicted path meets the ego corridor and with what TTC. From that:
   only for a box at least ``min_height_m`` tall at that depth (a road user, not a strip
   of road). A track moving over ground at ``FAST_MOVER_M_S`` or more (a car, a cyclist)
   needs no ``min_probability``: a lead car at the epipole shows little independent flow.
-  An obstacle standing in the path (``obstacle.py``) is static by construction and carries no
-  evidence of independent motion: it needs neither; its own confirmation stands for both.
   A hidden track, assessed from its coasted 3-D state, needs ``HIDDEN_MIN_PROBABILITY``
   (its highest while seen) and raises at most ``hidden.max_level``.
 * **Without the ego motion** (vehicle CAN stale or absent, PTU lost) the 3-D states' velocities
@@ -94,14 +92,14 @@ def indication(th: TrackThreat, threshold: float, cfg: WarningConfig) -> str | N
     stands up from the road, its evidence of independent motion is strong enough (or it is a
     fast mover), its path meets the corridor, and its time to collision is within the
     threshold."""
-    if th.ego_known and not th.moving and not th.standing:
+    if th.ego_known and not th.moving:
         return "not moving over ground"
     if th.height_m is not None and th.height_m < cfg.min_height_m:
         return f"box {th.height_m:.2f} m tall, below {cfg.min_height_m:.2f} m"
     p = th.report.probability if th.evidence is None else th.evidence
     p_min = HIDDEN_MIN_PROBABILITY if th.coasted else cfg.min_probability
     fast = th.ego_known and th.speed_m_s is not None and th.speed_m_s >= FAST_MOVER_M_S
-    if p < p_min and not fast and not th.standing:
+    if p < p_min and not fast:
         return f"probability {p:.2f} below {p_min:.2f}"
     if not th.on_course:
         return "path misses corridor" if th.miss_m is None \
@@ -148,8 +146,6 @@ def warning_step(state: WarningState, threats: tuple[TrackThreat, ...], t: float
         s1 = old[0] + 1 if why1 is None else 0
         s2 = old[1] + 1 if indication(th, thresholds[2] + lookahead, cfg) is None else 0
         if not th.ego_known:   # no level 2 from an ego motion it does not know
-            s2 = 0
-        if th.max_level < 2:   # an obstacle at the path's edge (obstacle.py)
             s2 = 0
         if th.coasted and hidden_max_level < 2:   # an issued level is held
             s2 = 0

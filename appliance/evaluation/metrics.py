@@ -242,13 +242,14 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
     # mover for the warnings, TTC and distance, but has no detection delay (it never moves)
     standing = [o for o in truth.objects if not o.moving and truth.collision
                 and o.id == truth.collision_object]
+    scored = movers + standing
 
     # per frame, the best-matching track of every mover; attribution of track ids; the
     # tracks that were ever on a mover (the others are ghosts)
-    match: dict[int, dict[int, TrackRow]] = {o.id: {} for o in movers + standing}
+    match: dict[int, dict[int, TrackRow]] = {o.id: {} for o in scored}
     votes: dict[int, Counter[int]] = defaultdict(Counter)
     on_mover: set[int] = set()
-    for o in movers + standing:
+    for o in scored:
         for i, f in enumerate(o.frames):
             box = clip_box(o.bbox[i], width, height)
             best, best_iou = None, IOU_MATCH
@@ -293,7 +294,7 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
     ct = truth.collision_t if truth.collision else None
     colliding = None
     if ct is not None:
-        named = [o for o in movers + standing if o.id == truth.collision_object]
+        named = [o for o in scored if o.id == truth.collision_object]
         colliding = named[0] if named else _colliding_object(movers, ct, frame_times, mount)
 
     def on_object(w: WarningRow, o: TruthObject) -> bool:
@@ -326,7 +327,7 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
         return matched_in(range(hidden_from - ATTRIBUTION_WINDOW, hidden_from))
 
     if truth.collision:
-        false_l2 = [w for w in l2_onsets if not any(on_object(w, o) for o in movers + standing)]
+        false_l2 = [w for w in l2_onsets if not any(on_object(w, o) for o in scored)]
     else:
         false_l2 = list(l2_onsets)
     first_l2_t = None

@@ -337,16 +337,18 @@ def _stopped_car(v: Vehicle, speed_kmh: float, lateral_m: float) -> Plan:
     v0, T = speed_kmh * KMH, 7.0
     x = v.front + v0 * T + SIZES["car"][0] / 2   # the ego's bumper meets the car's rear at T
     car = Trajectory(((-30.0, x, lateral_m), (T + 60.0, x, lateral_m)))
-    label = "car standing in the lane" if lateral_m == 0.0 else "car standing in the next lane"
-    end = None if lateral_m == 0.0 else T + 0.5
+    in_lane = lateral_m == 0.0
+    label = "car standing in the lane" if in_lane else "car standing in the next lane"
+    end = None if in_lane else T + 0.5   # in the lane the drive ends at the collision
     return Plan(EgoPlan(speed=((0.0, v0),)), duration_s=8.0, end_s=end,
                 movers=(MoverPlan("car", car, label),))
 
 
 def car_stopped_in_lane_30(v: Vehicle) -> Plan:
     """Euro NCAP CCRs / NHTSA FCW test 1 at 30 km/h: a car stands in the ego lane; the ego
-    drives at it at constant speed and does not brake. Nothing in the scene moves: the car
-    is found from motion parallax alone (it stands up from the road)."""
+    drives at it at constant speed and does not brake. Nothing in the scene moves: to a motion
+    detector the car is static scene; only its parallax (it stands up from the road) sets it
+    apart."""
     return _stopped_car(v, 30.0, 0.0)
 
 

@@ -12,6 +12,7 @@ from appliance.sim.drive import T0, SimulatedDrive, drive_look
 from appliance.sim.effects import Effects, EffectsPipeline
 from appliance.sim.ego import BodyBounce
 from appliance.sim.look import RANGES, Look
+from appliance.sim.movers import SIZES
 from appliance.sim.scenarios import SCENARIOS
 from appliance.sim.sensors import PTU_STEP_RAD
 from appliance.sim.truth import project_box
@@ -60,7 +61,7 @@ def test_scenario_is_built_as_described(name: str, camera: str) -> None:
     sc = SCENARIOS[name]
     drive = SimulatedDrive(name, seed=0, look=_look(name, camera))
     speeds = [v for _, v in drive.plan.ego.speed]
-    assert all(20 / 3.6 <= v <= 60 / 3.6 for v in speeds)
+    assert all(20 / 3.6 <= v <= 60 / 3.6 or v == 0.0 for v in speeds)   # 0: the ego stops
     assert 8.0 <= drive.duration <= 14.0
     assert drive.truth_header["collision"] is sc.collision
     if name == "bend_static":
@@ -146,6 +147,16 @@ def test_other_movers_do_what_their_scenarios_say() -> None:
     v_before, v_hit = car.velocity(ct - 3.6)[0], car.velocity(ct - 0.05)[0]
     assert v_before == pytest.approx(50 / 3.6, abs=0.15)
     assert (v_before - v_hit) / 3.5 == pytest.approx(2.0, abs=0.1)  # braking at 2 m/s^2
+    both = SimulatedDrive("lead_car_stops_ego_brakes", seed=0)
+    car, path = both.movers[0].trajectory, both.path
+    gaps = [car.position(tau)[0] - path.pose(tau)[0] - both.vehicle.front - SIZES["car"][0] / 2
+            for tau in np.arange(both.tau_end - 8.0, both.tau_end + 1e-9, 0.05)]
+    assert gaps[0] == pytest.approx(15.0, abs=0.01) and min(gaps) > 5.5   # room to spare
+    assert both.plan.ego.speed_at(both.tau_end) == 0.0      # the ego has stopped behind it
+    assert np.allclose(car.velocity(both.tau_end), 0.0)
+    standing = SimulatedDrive("pedestrian_standing_in_lane", seed=0)
+    ped = standing.movers[0].trajectory
+    assert not ped.moves() and ped.position(0.0)[1] == 0.0   # still, in the middle of the lane
     ahead = SimulatedDrive("car_crosses_ahead", seed=0)
     box = _mover_boxes(ahead, 1)
     seen = np.flatnonzero(np.isfinite(box[:, 0]))

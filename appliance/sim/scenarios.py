@@ -363,6 +363,36 @@ def car_stopped_next_lane(v: Vehicle) -> Plan:
     return _stopped_car(v, 50.0, 3.5)
 
 
+def pedestrian_standing_in_lane(v: Vehicle) -> Plan:
+    """Euro NCAP AEB pedestrian, stationary: an adult stands still in the middle of the ego
+    lane, facing the car; the ego drives at them at 35 km/h and does not brake. Nothing in the
+    scene moves: only the pedestrian's parallax (standing up from the road) sets them apart."""
+    v0, T = 35 * KMH, 7.0
+    x = v.front + v0 * T + SIZES["pedestrian"][0] / 2   # the bumper reaches them at T
+    ped = Trajectory(((-30.0, x, 0.0), (T + 60.0, x, 0.0)))
+    return Plan(EgoPlan(speed=((0.0, v0),)), duration_s=8.0,
+                movers=(MoverPlan("pedestrian", ped, "pedestrian standing in the lane"),))
+
+
+def lead_car_stops_ego_brakes(v: Vehicle) -> Plan:
+    """No collision: ego and lead car at 40 km/h, 15 m apart in the same lane; the lead brakes
+    at 4 m/s^2 to a standstill and the ego, 0.8 s later, brakes as hard and stops about 6 m
+    behind it (the CAN speed falls to 0). The driver is already doing what a warning would
+    ask for."""
+    v0, decel, gap, t_brake, reaction = 40 * KMH, 4.0, 15.0, 2.0, 0.8
+    x0 = v.front + gap + SIZES["car"][0] / 2   # the lead's centre at tau = 0
+    t_stop = v0 / decel
+    taus = np.concatenate([[-30.0, 0.0], t_brake + np.arange(0.0, t_stop, 0.1),
+                           [t_brake + t_stop, t_brake + t_stop + 60.0]])
+    t = np.clip(taus - t_brake, 0.0, t_stop)
+    x = x0 + v0 * np.minimum(taus, t_brake) + v0 * t - 0.5 * decel * t**2
+    lead = Trajectory(tuple((float(tt), float(xx), 0.0) for tt, xx in zip(taus, x)))
+    ego_brake = t_brake + reaction
+    ego = EgoPlan(speed=((0.0, v0), (ego_brake, v0), (ego_brake + t_stop, 0.0)))
+    return Plan(ego, duration_s=8.0, end_s=7.0,
+                movers=(MoverPlan("car", lead, "lead car braking to a stop at 4 m/s^2"),))
+
+
 def _scenario(fn: Callable[[Vehicle], Plan], collision: bool, description: str) -> Scenario:
     return Scenario(fn.__name__, description, collision, fn, " ".join((fn.__doc__ or "").split()))
 
@@ -401,6 +431,11 @@ SCENARIOS: dict[str, Scenario] = {
             "collision: car standing in the lane, ego 60 km/h does not brake (CCRs)",
         ),
         _scenario(
+            pedestrian_standing_in_lane,
+            True,
+            "collision: pedestrian standing still in the lane, ego 35 km/h does not brake",
+        ),
+        _scenario(
             pedestrian_stops_at_kerb,
             False,
             "no collision: pedestrian on a collision course stops at the kerb, 30 km/h",
@@ -427,6 +462,11 @@ SCENARIOS: dict[str, Scenario] = {
             car_stopped_next_lane,
             False,
             "no collision: car standing in the next lane, passed at 50 km/h",
+        ),
+        _scenario(
+            lead_car_stops_ego_brakes,
+            False,
+            "no collision: lead car brakes to a stop 15 m ahead, the ego brakes too, 40 km/h",
         ),
         _scenario(
             pedestrian_passes_front,

@@ -376,10 +376,10 @@ def pedestrian_standing_in_lane(v: Vehicle) -> Plan:
 
 def lead_car_stops_ego_brakes(v: Vehicle) -> Plan:
     """No collision: ego and lead car at 40 km/h, 15 m apart in the same lane; the lead brakes
-    at 4 m/s^2 to a standstill and the ego, 0.8 s later, brakes as hard and stops about 6 m
-    behind it (the CAN speed falls to 0). The driver is already doing what a warning would
-    ask for."""
-    v0, decel, gap, t_brake, reaction = 40 * KMH, 4.0, 15.0, 2.0, 0.8
+    at 3 m/s^2 (0.3 g) to a standstill and the ego, 0.5 s later, brakes harder (4 m/s^2) and
+    stops about 14 m behind it (the CAN speed falls to 0). The driver is already doing what a
+    warning would ask for."""
+    v0, decel, gap, t_brake, reaction, ego_decel = 40 * KMH, 3.0, 15.0, 2.0, 0.5, 4.0
     x0 = v.front + gap + SIZES["car"][0] / 2   # the lead's centre at tau = 0
     t_stop = v0 / decel
     taus = np.concatenate([[-30.0, 0.0], t_brake + np.arange(0.0, t_stop, 0.1),
@@ -388,9 +388,9 @@ def lead_car_stops_ego_brakes(v: Vehicle) -> Plan:
     x = x0 + v0 * np.minimum(taus, t_brake) + v0 * t - 0.5 * decel * t**2
     lead = Trajectory(tuple((float(tt), float(xx), 0.0) for tt, xx in zip(taus, x)))
     ego_brake = t_brake + reaction
-    ego = EgoPlan(speed=((0.0, v0), (ego_brake, v0), (ego_brake + t_stop, 0.0)))
+    ego = EgoPlan(speed=((0.0, v0), (ego_brake, v0), (ego_brake + v0 / ego_decel, 0.0)))
     return Plan(ego, duration_s=8.0, end_s=7.0,
-                movers=(MoverPlan("car", lead, "lead car braking to a stop at 4 m/s^2"),))
+                movers=(MoverPlan("car", lead, "lead car braking to a stop at 3 m/s^2"),))
 
 
 def _scenario(fn: Callable[[Vehicle], Plan], collision: bool, description: str) -> Scenario:
@@ -466,7 +466,7 @@ SCENARIOS: dict[str, Scenario] = {
         _scenario(
             lead_car_stops_ego_brakes,
             False,
-            "no collision: lead car brakes to a stop 15 m ahead, the ego brakes too, 40 km/h",
+            "no collision: lead car 15 m ahead brakes to a stop, the ego brakes harder, 40 km/h",
         ),
         _scenario(
             pedestrian_passes_front,

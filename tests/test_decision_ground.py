@@ -43,6 +43,7 @@ from appliance.decision.threat import (
     significant_velocity,
 )
 from appliance.decision.assess import ACCELERATION_SIGNIFICANCE
+from appliance.decision.frame import speed_slope
 from appliance.messages import EgoMotion, SensorSample
 from appliance.vision.geometry import (
     PinholeCamera,
@@ -186,6 +187,36 @@ def test_path_prediction_collision_and_near_miss(default_config: Config) -> None
     bend = predict_path(np.array([20.0, 4.0]), np.zeros(2), 10.0, 0.2, mount, 0.3, 0.3, 6.0)
     straight = predict_path(np.array([20.0, 4.0]), np.zeros(2), 10.0, 0.0, mount, 0.3, 0.3, 6.0)
     assert bend.ttc is not None and straight.ttc is None
+
+
+def test_a_braking_ego_comes_to_a_stop_in_its_stopping_distance(default_config: Config) -> None:
+    mount = default_config.mount  # front 3.9 m
+    standing = np.array([3.9 + 15.0, 0.0])   # 15 m ahead of the bumper, not moving
+    # at 10 m/s: contact after 1.5 s at constant speed; braking at 4 m/s^2 it stops after
+    # 12.5 m, 2.5 m short; at 2 m/s^2 it needs 25 m and meets it (10 t - t^2 = 15: t = 1.84 s)
+    assert predict_path(standing, np.zeros(2), 10.0, 0.0, mount, 0.3, 0.0, 6.0).ttc \
+        == pytest.approx(1.5, abs=0.03)
+    stops = predict_path(standing, np.zeros(2), 10.0, 0.0, mount, 0.3, 0.0, 6.0, ego_accel=-4.0)
+    assert stops.ttc is None and stops.closest == pytest.approx(2.5, abs=0.05)
+    late = predict_path(standing, np.zeros(2), 10.0, 0.0, mount, 0.3, 0.0, 6.0, ego_accel=-2.0)
+    assert late.ttc == pytest.approx(5.0 - math.sqrt(10.0), abs=0.03)
+    # braking in a bend: along the same arc (radius 50 m), 12.5 m of it
+    bend = predict_path(np.array([3.9 + 12.0, 1.45]), np.zeros(2), 10.0, 0.2, mount, 0.3, 0.0,
+                        6.0, ego_accel=-4.0)
+    assert bend.ttc is not None   # the object stands on the arc 12 m ahead: reached
+    # the slope of the CAN speed: a car braking at 4 m/s^2 reads so within a second; a car
+    # coasting or at constant speed does not brake; an unknown speed keeps the last slope
+    a, v = 0.0, 10.0
+    for _ in range(30):
+        a = speed_slope(a, v, v - 4.0 / 30, 1 / 30, True)
+        v -= 4.0 / 30
+    assert a == pytest.approx(-4.0, abs=0.2)
+    assert speed_slope(a, None, 5.0, 1 / 30, True) == a
+    assert speed_slope(a, 5.0, 9.0, 1 / 30, False) == a
+    steady = 0.0
+    for _ in range(30):
+        steady = speed_slope(steady, 10.0, 10.0, 1 / 30, True)
+    assert steady == 0.0
 
 
 def test_distance_is_the_gap_of_the_near_side_across_the_optical_axis(

@@ -104,11 +104,13 @@ def assess(track: ImageTrack, cues: TrackCues, f: FrameContext, cfg: WarningConf
         distance = near_side_gap(pos, radius, mount, f.sensors.pan_rad)
         # braking or speeding up, where the state estimates it
         acc = significant_acceleration(vel, g.acceleration, g.P, ACCELERATION_SIGNIFICANCE)
+        # and the car's own braking, from its CAN speed: a driver braking already
+        # comes to a stop in its stopping distance
         base = predict_path(pos, vel, speed, yaw, mount, cfg.corridor_margin_m, radius,
-                            cfg.horizon_s, acc)
+                            cfg.horizon_s, acc, f.braking)
         wide = predict_path(pos, vel, speed, yaw, mount,
                             cfg.corridor_margin_m + CORRIDOR_HYSTERESIS_M, radius, cfg.horizon_s,
-                            acc)
+                            acc, f.braking)
         on_course, on_wide = base.ttc is not None, wide.ttc is not None
         miss = None if on_course else base.closest
         ttc_g = base.ttc if base.ttc is not None else wide.ttc

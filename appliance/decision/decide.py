@@ -18,6 +18,8 @@ deterministic.
 
 from __future__ import annotations
 
+import math
+
 from collections.abc import Mapping
 from dataclasses import replace
 
@@ -28,7 +30,7 @@ from appliance.decision.crossing_velocity import odometry_step
 from appliance.decision.cues import CueInput, Probe, TrackCues, probes, update_cues
 from appliance.decision.cues.ground import ground_model
 from appliance.decision.cues.peaks import shown
-from appliance.decision.frame import FrameContext, finite, measure_track
+from appliance.decision.frame import FrameContext, finite, measure_track, speed_slope
 from appliance.decision.ground_state import camera_pose, update_body_pitch
 from appliance.decision.hidden import hidden_probes, hidden_threats
 from appliance.decision.lost_tracks import coast_lost, reacquire
@@ -69,9 +71,11 @@ def observe(state: DecisionState, frame_index: int, t: float, particles: Particl
     pose = camera_pose(cfg.mount, body_pitch, sensors)
     odo = odometry_step(state.odo, finite(sensors.speed_m_s), finite(sensors.yaw_rate_rad_s), dt) \
         if state.t is not None else state.odo
+    known = math.isfinite(sensors.speed_m_s) and sensors.can_valid
+    accel = speed_slope(state.accel, state.speed, finite(sensors.speed_m_s), dt, known)
     frame = FrameContext(t=t, dt=dt, pose=pose, sensors=sensors, ego=ego, odo=odo, camera=camera,
                          mount=cfg.mount, window_px=particles.window_px,
-                         flow_std_px=particles.flow_std_px)
+                         flow_std_px=particles.flow_std_px, accel=accel)
     prob = spatio_temporal_filter(state.prob, particles, ego.rotation, camera, cfg.probability_map)
     clusters = find_clusters(prob, cfg.probability_map.scale, particles, cfg.clustering,
                              (camera.width, camera.height), halo_px=frame.halo_px)
@@ -129,7 +133,9 @@ def decide(state: DecisionState, obs: Observation, flows: Mapping[ProbeKey, Poin
     tracker = replace(obs.tracker, tracks=tuple(tracks))
     new_state = DecisionState(prob=obs.prob, tracker=tracker, cues=cues, warning=warning,
                               body_pitch=obs.body_pitch, pose=f.pose, t=f.t, model=state.model,
-                              lost=lost, odo=f.odo)
+                              lost=lost, odo=f.odo,
+                              speed=f.speed if math.isfinite(f.sensors.speed_m_s)
+                              and f.sensors.can_valid else None, accel=f.accel)
     out = DecisionOutput(
         prob_map=ProbabilityMap(p=obs.prob, scale=cfg.probability_map.scale),
         clusters=obs.clusters,

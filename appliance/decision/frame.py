@@ -33,6 +33,20 @@ from appliance.vision.geometry import PinholeCamera
 BORDER_MARGIN_PX = 3   # px, a box this close (plus particle spacing and halo) to a border has no contact
 
 
+BRAKING_M_S2 = -1.0   # m/s^2, the car brakes when its CAN speed falls faster than this
+ACCEL_TAU_S = 0.3     # s, low pass of the CAN speed's slope
+
+
+def speed_slope(accel: float, prev_speed: float | None, speed: float, dt: float,
+                known: bool) -> float:
+    """The CAN speed's slope (m/s^2) low-passed over ``ACCEL_TAU_S``; kept while the speed
+    is unknown or was not known the frame before."""
+    if not known or prev_speed is None or dt <= 0.0:
+        return accel
+    w = 1.0 - math.exp(-dt / ACCEL_TAU_S)
+    return (1.0 - w) * accel + w * (speed - prev_speed) / dt
+
+
 @dataclass(frozen=True)
 class FrameContext:
     """What the per-track computations of one frame share.
@@ -42,7 +56,8 @@ class FrameContext:
     ``speed``, ``yaw_rate`` their finite values (0 where unknown); ego: the refined camera
     motion since the previous frame; odo: the vehicle's pose in the odometry frame (x m, y m,
     heading rad); window_px, flow_std_px: the Lucas-Kanade window vision measured the
-    particles' flows with, and their std (sigma_p)."""
+    particles' flows with, and their std (sigma_p); accel: the CAN speed's low-passed slope
+    (m/s^2, :func:`speed_slope`)."""
 
     t: float
     dt: float
@@ -54,6 +69,13 @@ class FrameContext:
     mount: MountConfig
     window_px: int
     flow_std_px: float
+    accel: float = 0.0
+
+    @property
+    def braking(self) -> float:
+        """The car's own deceleration (m/s^2, negative) while it brakes harder than
+        ``BRAKING_M_S2``, else 0: the slope of the CAN speed, low-passed over ``ACCEL_TAU_S``."""
+        return self.accel if self.accel < BRAKING_M_S2 else 0.0
 
     @property
     def speed(self) -> float:

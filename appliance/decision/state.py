@@ -35,6 +35,8 @@ class DecisionState:
     t: float | None
     lost: tuple[LostTrack, ...] = ()
     odo: tuple[float, float, float] = (0.0, 0.0, 0.0)  # vehicle x, y (m), heading (rad), odometry frame
+    speed: float | None = None   # m/s, the last known CAN speed
+    accel: float = 0.0           # m/s^2, its low-passed slope (FrameContext.accel)
 
 
 @dataclass(frozen=True)

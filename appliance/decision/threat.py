@@ -4,7 +4,7 @@ Two cues, combined per track and frame:
 
 * **Ground cue** (primary): the 3-D state (ground_state.py) predicts the object
   at constant velocity over ground and the ego vehicle along the arc of its CAN
-  speed and yaw rate, over ``horizon_s``. The TTC is the first time the object
+  speed and yaw rate (braking to a stop while the driver brakes), over ``horizon_s``. The TTC is the first time the object
   (a disc of the radius its box width implies at its range) touches the ego
   outline widened by ``corridor_margin_m`` on each side; the closest approach
   is the smallest gap over the horizon. No contact within the horizon: TTC null.
@@ -92,12 +92,14 @@ def near_side_gap(position: NDArray[np.floating], radius: float, mount: MountCon
 
 def predict_path(position: NDArray[np.floating], velocity: NDArray[np.floating], speed: float,
                  yaw_rate: float, mount: MountConfig, margin: float, radius: float,
-                 horizon_s: float, accel: float = 0.0) -> PathPrediction:
+                 horizon_s: float, accel: float = 0.0, ego_accel: float = 0.0) -> PathPrediction:
     """Object at ``position`` (m) moving at ``velocity`` (m/s over ground), both in the current
     vehicle frame; ego along an arc (speed m/s, yaw rate rad/s); vectorised over time.
 
     ``accel`` (m/s^2): the object's acceleration along its direction of travel, kept
-    constant; a braking object (accel < 0) stops and stays (it does not reverse)."""
+    constant; a braking object (accel < 0) stops and stays (it does not reverse).
+    ``ego_accel`` (m/s^2): the ego's own, the same way (a car braking to a stop drives no
+    farther than its stopping distance), along the same arc (curvature yaw rate / speed)."""
     tau = np.arange(0.0, horizon_s + 1e-9, STEP_S)
     v = np.asarray(velocity, dtype=np.float64)
     v_abs = float(np.hypot(v[0], v[1]))
@@ -111,12 +113,22 @@ def predict_path(position: NDArray[np.floating], velocity: NDArray[np.floating],
     else:
         px0 = position[0] + v[0] * tau
         py0 = position[1] + v[1] * tau
-    psi = yaw_rate * tau
-    if abs(yaw_rate) > 1e-4:
-        ex = speed * np.sin(psi) / yaw_rate
-        ey = speed * (1.0 - np.cos(psi)) / yaw_rate
+    if ego_accel < 0.0 and speed > 0.0:
+        te = np.minimum(tau, -speed / ego_accel)
+        s_ego = speed * te + 0.5 * ego_accel * te * te   # m driven, the arc's length
+        k = yaw_rate / speed
+        psi = k * s_ego
+        if abs(k) > 1e-6:
+            ex, ey = np.sin(psi) / k, (1.0 - np.cos(psi)) / k
+        else:
+            ex, ey = s_ego, np.zeros_like(tau)
     else:
-        ex, ey = speed * tau, np.zeros_like(tau)
+        psi = yaw_rate * tau
+        if abs(yaw_rate) > 1e-4:
+            ex = speed * np.sin(psi) / yaw_rate
+            ey = speed * (1.0 - np.cos(psi)) / yaw_rate
+        else:
+            ex, ey = speed * tau, np.zeros_like(tau)
     px = px0 - ex
     py = py0 - ey
     c, s = np.cos(psi), np.sin(psi)

@@ -205,14 +205,15 @@ def test_a_braking_ego_comes_to_a_stop_in_its_stopping_distance(default_config: 
                         6.0, ego_accel=-4.0)
     assert bend.ttc is not None   # the object stands on the arc 12 m ahead: reached
     # the slope of the CAN speed: a car braking at 4 m/s^2 reads so within a second; a car
-    # coasting or at constant speed does not brake; an unknown speed keeps the last slope
+    # at constant speed does not brake; an unknown speed knows no braking, and the first
+    # speed after it has no slope yet
     a, v = 0.0, 10.0
     for _ in range(30):
         a = speed_slope(a, v, v - 4.0 / 30, 1 / 30, True)
         v -= 4.0 / 30
     assert a == pytest.approx(-4.0, abs=0.2)
     assert speed_slope(a, None, 5.0, 1 / 30, True) == a
-    assert speed_slope(a, 5.0, 9.0, 1 / 30, False) == a
+    assert speed_slope(a, 5.0, 9.0, 1 / 30, False) == 0.0
     steady = 0.0
     for _ in range(30):
         steady = speed_slope(steady, 10.0, 10.0, 1 / 30, True)

@@ -39,9 +39,12 @@ ACCEL_TAU_S = 0.3     # s, low pass of the CAN speed's slope
 
 def speed_slope(accel: float, prev_speed: float | None, speed: float, dt: float,
                 known: bool) -> float:
-    """The CAN speed's slope (m/s^2) low-passed over ``ACCEL_TAU_S``; kept while the speed
-    is unknown or was not known the frame before."""
-    if not known or prev_speed is None or dt <= 0.0:
+    """The CAN speed's slope (m/s^2) low-passed over ``ACCEL_TAU_S``; 0 while the speed is
+    unknown (no braking that the appliance does not see), kept when it was not known the frame
+    before."""
+    if not known:
+        return 0.0
+    if prev_speed is None or dt <= 0.0:
         return accel
     w = 1.0 - math.exp(-dt / ACCEL_TAU_S)
     return (1.0 - w) * accel + w * (speed - prev_speed) / dt

@@ -209,14 +209,14 @@ def test_a_braking_ego_comes_to_a_stop_in_its_stopping_distance(default_config: 
     # speed after it has no slope yet
     a, v = 0.0, 10.0
     for _ in range(30):
-        a = speed_slope(a, v, v - 4.0 / 30, 1 / 30, True)
+        a = speed_slope(a, v, v - 4.0 / 30, 1 / 30)
         v -= 4.0 / 30
     assert a == pytest.approx(-4.0, abs=0.2)
-    assert speed_slope(a, None, 5.0, 1 / 30, True) == a
-    assert speed_slope(a, 5.0, 9.0, 1 / 30, False) == 0.0
+    assert speed_slope(a, None, 5.0, 1 / 30) == a
+    assert speed_slope(a, 5.0, None, 1 / 30) == 0.0
     steady = 0.0
     for _ in range(30):
-        steady = speed_slope(steady, 10.0, 10.0, 1 / 30, True)
+        steady = speed_slope(steady, 10.0, 10.0, 1 / 30)
     assert steady == 0.0
 
 

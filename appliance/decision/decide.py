@@ -18,8 +18,6 @@ deterministic.
 
 from __future__ import annotations
 
-import math
-
 from collections.abc import Mapping
 from dataclasses import replace
 
@@ -30,7 +28,13 @@ from appliance.decision.crossing_velocity import odometry_step
 from appliance.decision.cues import CueInput, Probe, TrackCues, probes, update_cues
 from appliance.decision.cues.ground import ground_model
 from appliance.decision.cues.peaks import shown
-from appliance.decision.frame import FrameContext, finite, measure_track, speed_slope
+from appliance.decision.frame import (
+    FrameContext,
+    can_speed,
+    finite,
+    measure_track,
+    speed_slope,
+)
 from appliance.decision.ground_state import camera_pose, update_body_pitch
 from appliance.decision.hidden import hidden_probes, hidden_threats
 from appliance.decision.lost_tracks import coast_lost, reacquire
@@ -71,8 +75,7 @@ def observe(state: DecisionState, frame_index: int, t: float, particles: Particl
     pose = camera_pose(cfg.mount, body_pitch, sensors)
     odo = odometry_step(state.odo, finite(sensors.speed_m_s), finite(sensors.yaw_rate_rad_s), dt) \
         if state.t is not None else state.odo
-    known = math.isfinite(sensors.speed_m_s) and sensors.can_valid
-    accel = speed_slope(state.accel, state.speed, finite(sensors.speed_m_s), dt, known)
+    accel = speed_slope(state.accel, state.speed, can_speed(sensors), dt)
     frame = FrameContext(t=t, dt=dt, pose=pose, sensors=sensors, ego=ego, odo=odo, camera=camera,
                          mount=cfg.mount, window_px=particles.window_px,
                          flow_std_px=particles.flow_std_px, accel=accel)
@@ -133,9 +136,7 @@ def decide(state: DecisionState, obs: Observation, flows: Mapping[ProbeKey, Poin
     tracker = replace(obs.tracker, tracks=tuple(tracks))
     new_state = DecisionState(prob=obs.prob, tracker=tracker, cues=cues, warning=warning,
                               body_pitch=obs.body_pitch, pose=f.pose, t=f.t, model=state.model,
-                              lost=lost, odo=f.odo,
-                              speed=f.speed if math.isfinite(f.sensors.speed_m_s)
-                              and f.sensors.can_valid else None, accel=f.accel)
+                              lost=lost, odo=f.odo, speed=can_speed(f.sensors), accel=f.accel)
     out = DecisionOutput(
         prob_map=ProbabilityMap(p=obs.prob, scale=cfg.probability_map.scale),
         clusters=obs.clusters,

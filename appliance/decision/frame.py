@@ -31,18 +31,21 @@ from appliance.messages import EgoMotion, SensorSample
 from appliance.vision.geometry import PinholeCamera
 
 BORDER_MARGIN_PX = 3   # px, a box this close (plus particle spacing and halo) to a border has no contact
+BRAKING_M_S2 = -1.0    # m/s^2, the car brakes when its CAN speed falls faster than this
+ACCEL_TAU_S = 0.3      # s, low pass of the CAN speed's slope
 
 
-BRAKING_M_S2 = -1.0   # m/s^2, the car brakes when its CAN speed falls faster than this
-ACCEL_TAU_S = 0.3     # s, low pass of the CAN speed's slope
+def can_speed(sensors: SensorSample) -> float | None:
+    """The CAN speed (m/s) when it is known: finite and fresh; else None."""
+    v = sensors.speed_m_s
+    return v if sensors.can_valid and math.isfinite(v) else None
 
 
-def speed_slope(accel: float, prev_speed: float | None, speed: float, dt: float,
-                known: bool) -> float:
+def speed_slope(accel: float, prev_speed: float | None, speed: float | None, dt: float) -> float:
     """The CAN speed's slope (m/s^2) low-passed over ``ACCEL_TAU_S``; 0 while the speed is
-    unknown (no braking that the appliance does not see), kept when it was not known the frame
-    before."""
-    if not known:
+    unknown (None: no braking that the appliance does not see), kept when it was not known the
+    frame before."""
+    if speed is None:
         return 0.0
     if prev_speed is None or dt <= 0.0:
         return accel

@@ -4,10 +4,11 @@ Two cues, combined per track and frame:
 
 * **Ground cue** (primary): the 3-D state (ground_state.py) predicts the object
   at constant velocity over ground and the ego vehicle along the arc of its CAN
-  speed and yaw rate (braking to a stop while the driver brakes), over ``horizon_s``. The TTC is the first time the object
-  (a disc of the radius its box width implies at its range) touches the ego
-  outline widened by ``corridor_margin_m`` on each side; the closest approach
-  is the smallest gap over the horizon. No contact within the horizon: TTC null.
+  speed and yaw rate (braking to a stop while the driver brakes), over
+  ``horizon_s``. The TTC is the first time the object (a disc of the radius its
+  box width implies at its range) touches the ego outline widened by
+  ``corridor_margin_m`` on each side; the closest approach is the smallest gap
+  over the horizon. No contact within the horizon: TTC null.
 * **Scale cue** (scale_ttc.py): time until the object reaches the camera's image
   plane, corrected to the front bumper with the 3-D depth where one exists
   (``TTC_bumper = TTC_cam (1 - d / Z)``, d the camera-to-bumper distance).

@@ -40,6 +40,7 @@ from appliance.decision.threat import (
     outline_gap,
     predict_path,
     significant_acceleration,
+    significant_speed,
     significant_velocity,
 )
 from appliance.decision.assess import ACCELERATION_SIGNIFICANCE
@@ -443,6 +444,20 @@ def test_velocity_prior_from_the_bearing_rate(default_config: Config) -> None:
     rate0 = (d[0] * rel_static[1] - d[1] * rel_static[0]) / (d @ d)
     mean0, _ = velocity_prior(z, rate0, speed, 0.0, (1.9, 0.0), cfg)
     np.testing.assert_allclose(mean0, 0.0, atol=1e-9)
+
+
+def test_a_fast_mover_is_judged_by_the_speed_it_moves_at_least() -> None:
+    """A pedestrian's 3-D state a few contacts after its range jumped: 6 m/s along x with a
+    std of 2 m/s there is not a car (5 m/s or more at 2 std); a lead car's 10 +- 0.5 m/s is."""
+    P = np.diag([0.1, 0.1, 4.0, 0.04])
+    assert significant_speed(np.array([-6.0, 0.0]), P, 2.0) == pytest.approx(2.0)
+    assert significant_speed(np.array([-6.0, 0.0]), P, 2.0) < 5.0
+    assert significant_speed(np.array([10.0, 0.0]), np.diag([0.1, 0.1, 0.25, 0.25]), 2.0) \
+        == pytest.approx(9.0)
+    # along its own direction: the lateral std counts for a lateral motion
+    assert significant_speed(np.array([0.0, 6.0]), P, 2.0) == pytest.approx(5.6)
+    assert significant_speed(np.zeros(2), P, 2.0) == 0.0
+    assert significant_speed(np.array([1.0, 0.0]), P, 2.0) == 0.0
 
 
 def test_insignificant_velocity_components_are_predicted_as_zero(default_config: Config) -> None:

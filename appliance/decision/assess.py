@@ -31,6 +31,7 @@ from appliance.decision.threat import (
     predict_path,
     scale_lateral_miss,
     significant_acceleration,
+    significant_speed,
     significant_velocity,
 )
 from appliance.decision.tracking import ImageTrack
@@ -50,9 +51,10 @@ class TrackThreat:
     report: its row of ``tracks.jsonl`` (ttc_s None: no contact predicted, or unknown);
     on_course: its path meets the corridor (``warning.corridor_margin_m``); on_course_wide: the
     corridor widened by ``CORRIDOR_HYSTERESIS_M``; miss_m: by how much its path misses the
-    corridor, where known; moving: it has shown independent motion over ground; speed_m_s: its
-    speed over ground (None without a 3-D state); height_m: the tallest its box has been at its
-    depth, None where its depth is unknown; coasted: a hidden track assessed from its coasted
+    corridor, where known; moving: it has shown independent motion over ground; speed_m_s: the
+    speed over ground it moves at least, at ``VELOCITY_SIGNIFICANCE`` std (None without a 3-D
+    state); height_m: the tallest its box has been at its depth, None where its depth is
+    unknown; coasted: a hidden track assessed from its coasted
     3-D state; evidence: the probability tested against ``min_probability`` when it is not the
     track's own (:func:`warnings.pool_covered`), else None."""
 
@@ -161,6 +163,8 @@ def assess(track: ImageTrack, cues: TrackCues, f: FrameContext, cfg: WarningConf
     height = None
     if depth is not None and depth > 0.0:
         height = peaks.height_peak_m if peaks is not None else 0.0
+    least = None if g is None or not ego_known else significant_speed(
+        g.velocity, g.measured_covariance, VELOCITY_SIGNIFICANCE)
     return TrackThreat(report=report, on_course=on_course, on_course_wide=on_wide, miss_m=miss,
-                       moving=moving, speed_m_s=None if g is None or not ego_known else g.speed,
-                       height_m=height, coasted=coasted, ego_known=ego_known)
+                       moving=moving, speed_m_s=least, height_m=height, coasted=coasted,
+                       ego_known=ego_known)

@@ -13,8 +13,9 @@ predicted path meets the ego corridor and with what TTC. From that:
   motion (eq. 20, smoothed) of at least ``min_probability``: false detections on
   road texture are weak and patchy, real movers are not; and, with a ground contact,
   only for a box at least ``min_height_m`` tall at that depth (a road user, not a strip
-  of road). A track moving over ground at ``FAST_MOVER_M_S`` or more (a car, a cyclist)
-  needs no ``min_probability``: a lead car at the epipole shows little independent flow.
+  of road). A track moving over ground at ``FAST_MOVER_M_S`` or more (a car, a cyclist;
+  the speed it moves at least, 2 std below its estimate) needs no ``min_probability``: a
+  lead car at the epipole shows little independent flow.
   A hidden track, assessed from its coasted 3-D state, needs ``HIDDEN_MIN_PROBABILITY``
   (its highest while seen) and raises at most ``hidden.max_level``.
 * **Without the ego motion** (vehicle CAN stale or absent, PTU lost) the 3-D states' velocities

@@ -54,9 +54,9 @@ class TrackThreat:
     corridor, where known; moving: it has shown independent motion over ground; speed_m_s: the
     speed over ground it moves at least, at ``VELOCITY_SIGNIFICANCE`` std (None without a 3-D
     state); height_m: the tallest its box has been at its depth, None where its depth is
-    unknown; coasted: a hidden track assessed from its coasted
-    3-D state; evidence: the probability tested against ``min_probability`` when it is not the
-    track's own (:func:`warnings.pool_covered`), else None."""
+    unknown; coasted: a hidden track assessed from its coasted 3-D state; evidence: the
+    probability tested against ``min_probability`` when it is not the track's own
+    (:func:`warnings.pool_covered`), else None."""
 
     report: TrackReport
     on_course: bool

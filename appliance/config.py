@@ -220,6 +220,13 @@ class HiddenConfig:
 
 
 @dataclass(frozen=True)
+class ObstacleConfig:
+    max_range_m: float = _p(0.0, 200.0)
+    memory_s: float = _p(0.0, 10.0)
+    evidence_threshold: float = _p(0.0, 1e6, lo_open=True)
+
+
+@dataclass(frozen=True)
 class WarningConfig:
     ttc_caution_s: float = _p(0.0, 60.0, lo_open=True)
     ttc_warning_s: float = _p(0.0, 60.0, lo_open=True)
@@ -258,6 +265,7 @@ class Config:
     tracking: TrackingConfig
     cue: CueConfig
     hidden: HiddenConfig
+    obstacle: ObstacleConfig
     warning: WarningConfig
     runtime: RuntimeConfig
 

@@ -34,9 +34,10 @@ from appliance.messages import (
 )
 from appliance.vision.geometry import PinholeCamera
 from appliance.vision.perception import VisionState, check_frame, init_vision_state, perceive
-from appliance.vision.probes import measure_points
+from appliance.vision.probes import measure_from, measure_points
 
 STAGES = ("vision", "decision", "total")
+HISTORY = 8   # frames whose images are kept for probes measured over several frames
 
 
 @dataclass(frozen=True)
@@ -45,6 +46,7 @@ class PipelineState:
     decision: DecisionState
     prob_map: ProbabilityMap | None
     frames: int = 0
+    images: tuple[NDArray[np.uint8], ...] = ()   # the last HISTORY frames' images, oldest first
 
 
 def camera_from_config(cfg: Config) -> PinholeCamera:
@@ -69,17 +71,20 @@ def decision_step(
     sensors: SensorSample,
     cfg: Config,
     camera: PinholeCamera,
-    images: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None,
+    images: tuple[NDArray[np.uint8], ...] | None = None,
 ) -> tuple[DecisionState, DecisionOutput]:
     """The decision stage of one frame: :func:`decide.observe`, the flow vision measures at the
-    pixels it asks about (outlines, hidden tracks) in ``images`` (the previous and this frame,
-    8-bit gray; None: nothing is measured), then :func:`decide.decide`. Decision never sees
-    the images."""
+    pixels it asks about (outlines, hidden tracks, the corridor) in ``images`` (recent frames,
+    8-bit gray, oldest first, this frame last; fewer than two: nothing is measured), then
+    :func:`decide.decide`. Decision never sees the images."""
     obs = observe(state, frame_index, t, particles, ego, sensors, cfg, camera)
     flows = None
-    if images is not None:
-        flows = measure_points(images[0], images[1], obs.requests(), ego.rotation, camera,
+    if images is not None and len(images) >= 2:
+        flows = measure_points(images[-2], images[-1], obs.requests(), ego.rotation, camera,
                                cfg.flow)
+        for key, (points, guess, back) in obs.spanning_requests().items():
+            if back < len(images):
+                flows[key] = measure_from(images[-1 - back], images[-1], points, guess, cfg.flow)
     return decide(state, obs, flows, cfg)
 
 
@@ -96,11 +101,11 @@ def step(
     t0 = clock()
     vision, ego, particles = perceive(state.vision, frame, sensors, state.prob_map, cfg, camera)
     t1 = clock()
-    pair = None
-    if state.vision.prev_image is not None and vision.prev_image is not None:
-        pair = (state.vision.prev_image, vision.prev_image)
+    images: tuple[NDArray[np.uint8], ...] = ()
+    if vision.prev_image is not None:
+        images = (*state.images, vision.prev_image)[-HISTORY:]
     decision, out = decision_step(state.decision, frame.index, frame.t, particles, ego, sensors,
-                                  cfg, camera, pair)
+                                  cfg, camera, images)
     t2 = clock()
     result = StepOutput(
         frame=frame.index,
@@ -113,6 +118,7 @@ def step(
         stage_ms={"vision": (t1 - t0) * 1e3, "decision": (t2 - t1) * 1e3, "total": (t2 - t0) * 1e3},
     )
     new_state = PipelineState(
-        vision=vision, decision=decision, prob_map=out.prob_map, frames=state.frames + 1
+        vision=vision, decision=decision, prob_map=out.prob_map, frames=state.frames + 1,
+        images=images,
     )
     return new_state, result, out

@@ -56,7 +56,9 @@ class TrackThreat:
     state); height_m: the tallest its box has been at its depth, None where its depth is
     unknown; coasted: a hidden track assessed from its coasted 3-D state; evidence: the
     probability tested against ``min_probability`` when it is not the track's own
-    (:func:`warnings.pool_covered`), else None."""
+    (:func:`warnings.pool_covered`), else None; standing: an obstacle standing in the path
+    (``standing.py``), static by construction, its evidence its parallax; roadside: such an
+    obstacle continues the roadside (the outside of a bend the path is predicted straight into)."""
 
     report: TrackReport
     on_course: bool
@@ -68,6 +70,8 @@ class TrackThreat:
     coasted: bool = False
     evidence: float | None = None
     ego_known: bool = True
+    standing: bool = False
+    roadside: bool = False
 
     @property
     def ttc(self) -> float | None:

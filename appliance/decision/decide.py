@@ -21,6 +21,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import replace
 
+import numpy as np
+
 from appliance.config import Config
 from appliance.decision.assess import TrackThreat, assess
 from appliance.decision.clustering import find_clusters
@@ -40,6 +42,15 @@ from appliance.decision.hidden import hidden_probes, hidden_threats
 from appliance.decision.lost_tracks import coast_lost, reacquire
 from appliance.decision.occlusion import CoastProbe
 from appliance.decision.probability_map import empty_map, spatio_temporal_filter
+from appliance.decision.standing import (
+    CorridorProbe,
+    corridor_probe,
+    frame_motion,
+    init_standing,
+    inside,
+    obstacle_threat,
+    standing_step,
+)
 from appliance.decision.state import DecisionOutput, DecisionState, Observation, ProbeKey
 from appliance.decision.tracking import ImageModel, TrackerState, track_step
 from appliance.decision.warnings import WarningState, pool_covered, warning_step
@@ -49,6 +60,15 @@ from appliance.vision.probes import PointFlow
 
 __all__ = ["DecisionOutput", "DecisionState", "Observation", "decide", "init_decision_state",
            "observe"]
+
+
+OBSTACLE_PROBE = ("obstacle", 0, "")
+
+
+def moved(cues: TrackCues | None) -> bool:
+    """Whether a track has shown independent motion over ground (the motion cue)."""
+    m = cues.get("motion") if cues is not None else None
+    return bool(m is not None and m.moved)
 
 
 def init_decision_state(cfg: Config, camera: PinholeCamera) -> DecisionState:
@@ -61,6 +81,7 @@ def init_decision_state(cfg: Config, camera: PinholeCamera) -> DecisionState:
         pose=None,
         t=None,
         model=ImageModel.from_config(cfg.tracking),
+        standing=init_standing(cfg.obstacle),
     )
 
 
@@ -85,11 +106,17 @@ def observe(state: DecisionState, frame_index: int, t: float, particles: Particl
     tracker = track_step(state.tracker, clusters, cfg.tracking, state.model)
     lost = coast_lost(state.tracker, state.cues, state.lost, tracker, t, dt, sensors,
                       ground_model(cfg.cue.ground), cfg.hidden)
-    asked: dict[ProbeKey, Probe | CoastProbe] = {}
+    asked: dict[ProbeKey, Probe | CoastProbe | CorridorProbe] = {}
     for tr in tracker.tracks:
         for name, p in probes(state.cues.get(tr.uid), tr, frame, cfg.cue):
             asked[("cue", tr.uid, name)] = p
     asked.update(hidden_probes(lost, frame, cfg.hidden))
+    before = state.standing if state.standing is not None else init_standing(cfg.obstacle)
+    corridor = corridor_probe(pose, camera, ego, sensors, dt, cfg.mount,
+                              cfg.warning.corridor_margin_m, particles.window_px,
+                              before.motions, cfg.obstacle)
+    if corridor is not None:
+        asked[OBSTACLE_PROBE] = corridor
     return Observation(frame_index=frame_index, frame=frame, body_pitch=body_pitch, prob=prob,
                        clusters=clusters, tracker=tracker, lost=lost, probes=asked)
 
@@ -128,15 +155,32 @@ def decide(state: DecisionState, obs: Observation, flows: Mapping[ProbeKey, Poin
     threats = pool_covered(threats)
     lost, hidden = hidden_threats(lost, obs.probes, measured, f, cfg.hidden, cfg.warning)
     threats.extend(hidden)
+    corridor = obs.probes.get(OBSTACLE_PROBE)
+    cp = corridor if isinstance(corridor, CorridorProbe) else None
+    mover_p = np.zeros(0)
+    if cp is not None:
+        moving = [tr.bbox for tr in tracks if tr.confirmed and moved(cues.get(tr.uid))]
+        mover_p = np.maximum(
+            ProbabilityMap(p=obs.prob, scale=cfg.probability_map.scale).at(cp.points),
+            inside(cp.points, moving))
+    before_standing = state.standing if state.standing is not None else init_standing(cfg.obstacle)
+    standing, next_id = standing_step(
+        before_standing, cp, measured.get(OBSTACLE_PROBE), mover_p, f.t, f.dt, f.speed,
+        frame_motion(f.ego, f.sensors, f.dt), f.camera, f.mount, cfg.warning.corridor_margin_m, obs.tracker.next_id,
+        cfg.obstacle)
+    ob = standing.obstacle
+    if ob is not None and ob.seen == f.t:
+        threats.append(obstacle_threat(ob, f, cfg.warning, cfg.obstacle.evidence_threshold))
     threats.sort(key=lambda th: th.report.id)
     warning, events, warned, reasons = warning_step(
         state.warning, tuple(threats), f.t, obs.frame_index, cfg.warning, frame_dt=f.dt,
         released=frozenset(lt.id for lt in lost if lt.off_course),
         hidden_max_level=cfg.hidden.max_level)
-    tracker = replace(obs.tracker, tracks=tuple(tracks))
+    tracker = replace(obs.tracker, tracks=tuple(tracks), next_id=next_id)
     new_state = DecisionState(prob=obs.prob, tracker=tracker, cues=cues, warning=warning,
                               body_pitch=obs.body_pitch, pose=f.pose, t=f.t, model=state.model,
-                              lost=lost, odo=f.odo, speed=can_speed(f.sensors), accel=f.accel)
+                              lost=lost, odo=f.odo, speed=can_speed(f.sensors), accel=f.accel,
+                              standing=standing)
     out = DecisionOutput(
         prob_map=ProbabilityMap(p=obs.prob, scale=cfg.probability_map.scale),
         clusters=obs.clusters,

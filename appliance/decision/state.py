@@ -13,12 +13,14 @@ from appliance.decision.frame import FrameContext
 from appliance.decision.ground_state import CameraPose
 from appliance.decision.lost_tracks import LostTrack
 from appliance.decision.occlusion import CoastProbe
+from appliance.decision.standing import CorridorProbe, StandingState
 from appliance.decision.tracking import ImageModel, TrackerState
 from appliance.decision.warnings import WarningState
 from appliance.messages import ProbabilityMap, TrackReport, WarningEvent
 from appliance.vision.geometry import FloatArray
 
-# a probe's key: ("cue", track uid, cue name) or ("cover" / "course", hidden track id, "")
+# a probe's key: ("cue", track uid, cue name), ("cover" / "course", hidden track id, "") or
+# ("obstacle", 0, "")
 ProbeKey = tuple[str, int, str]
 
 @dataclass(frozen=True)
@@ -37,6 +39,7 @@ class DecisionState:
     odo: tuple[float, float, float] = (0.0, 0.0, 0.0)  # vehicle x, y (m), heading (rad), odometry frame
     speed: float | None = None   # m/s, the last known CAN speed
     accel: float = 0.0           # m/s^2, its low-passed slope (FrameContext.accel)
+    standing: StandingState | None = None   # what stands in the path (standing.py)
 
 
 @dataclass(frozen=True)
@@ -52,11 +55,19 @@ class Observation:
     clusters: tuple[Cluster, ...]
     tracker: TrackerState
     lost: tuple[LostTrack, ...]
-    probes: dict[ProbeKey, Probe | CoastProbe]
+    probes: dict[ProbeKey, Probe | CoastProbe | CorridorProbe]
 
     def requests(self) -> dict[ProbeKey, FloatArray]:
-        """The pixels (M, 2) of the current frame whose flow each probe needs."""
-        return {k: p.points for k, p in self.probes.items()}
+        """The pixels (M, 2) of the current frame whose flow since the previous frame each
+        probe needs."""
+        return {k: p.points for k, p in self.probes.items() if not isinstance(p, CorridorProbe)}
+
+    def spanning_requests(self) -> dict[ProbeKey, tuple[FloatArray, FloatArray, int]]:
+        """The probes measured over several frames: their pixels (M, 2) of the current frame,
+        where each search starts (M, 2) in the frame ``frames_back`` frames ago, and that
+        number."""
+        return {k: (p.points, p.guess, p.frames_back) for k, p in self.probes.items()
+                if isinstance(p, CorridorProbe)}
 
 
 @dataclass(frozen=True)

@@ -93,14 +93,16 @@ def indication(th: TrackThreat, threshold: float, cfg: WarningConfig) -> str | N
     stands up from the road, its evidence of independent motion is strong enough (or it is a
     fast mover), its path meets the corridor, and its time to collision is within the
     threshold."""
-    if th.ego_known and not th.moving:
+    if th.ego_known and not th.moving and not th.standing:
         return "not moving over ground"
+    if th.standing and th.roadside:
+        return "stands at the roadside, which comes nearer beside it (a bend)"
     if th.height_m is not None and th.height_m < cfg.min_height_m:
         return f"box {th.height_m:.2f} m tall, below {cfg.min_height_m:.2f} m"
     p = th.report.probability if th.evidence is None else th.evidence
     p_min = HIDDEN_MIN_PROBABILITY if th.coasted else cfg.min_probability
     fast = th.ego_known and th.speed_m_s is not None and th.speed_m_s >= FAST_MOVER_M_S
-    if p < p_min and not fast:
+    if p < p_min and not fast and not th.standing:
         return f"probability {p:.2f} below {p_min:.2f}"
     if not th.on_course:
         return "path misses corridor" if th.miss_m is None \

@@ -1,0 +1,528 @@
+"""Anything standing in the path: static points in the ego corridor that stand up from the road.
+
+The detector finds what moves over ground; a car standing in the lane is static scene to it.
+What sets it apart is parallax. With the refined ego motion and the CAN speed, the flow of a
+static point is known up to its depth (``likelihood.static_flow``: ``f_s = g w``, ``g = (K
+t)_xy - t_z x`` and ``w`` the inverse of its depth in the previous frame), and below the
+horizon the road gives that depth at every pixel. A surface standing up from the road at
+distance D is nearer than the road seen at its pixels: its flow is longer by ``w_D - w_road``.
+
+Hypotheses: an upright surface ``D`` m ahead of the camera, on the ego path predicted from the
+CAN speed and yaw rate, in one of ``CELLS`` lateral cells across the corridor (the ego width
+plus ``warning.corridor_margin_m`` a side), probed at ``HEIGHTS_M`` above the road; the
+distances form a geometric grid from ``MIN_RANGE_M`` to ``obstacle.max_range_m``. Vision
+measures the flow at those pixels (:func:`corridor_probe` names them); per point the
+log-likelihood ratio of "a static surface at D" against "the road", for the flow's error
+along the static flow's direction, measured across it (:func:`point_evidence`), clipped at
+``CLIP_NATS`` so that no single point decides. A point moving independently (its flow
+``CROSS_SIGMAS`` std or more across the static direction, or p(x) >= ``MOVER_PROBABILITY``)
+says nothing: it is a mover, and the movers' tracks warn of it.
+
+The evidence of a hypothesis is summed over frames, anchored to the road (a standing object
+comes nearer by the distance driven), with a fading memory (``obstacle.memory_s``). Where a
+cell's evidence exceeds ``obstacle.evidence_threshold``, something stands there: its
+distance is the peak of the evidence along the path, its box the cells that carry it. An
+obstacle is static: its time to collision and whether it is in the path come from
+``threat.predict_path`` for an object that does not move, the ego driving its arc and braking
+as its CAN speed says (a driver braking to a stop short of it is not warned).
+
+An object approaching along the path at a closing speed below the ego's (a lead car braking
+to a stop) looks like a static surface farther away than it is, by the ratio of the two
+speeds: the time to contact of that surface, ``D / speed``, is the object's own.
+
+Where it cannot work: objects lower than the lowest probe (``HEIGHTS_M``, flat things on the
+road: that is the point); far objects, whose parallax drowns in the flow's error (the
+evidence grows with ``(w_D - w_road)^2 |g|^2``, i.e. with the ego speed squared over the
+distance to the fourth power); a road that rises ahead (nearer than the flat road
+predicts: it stands up by the rise).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from appliance.config import MountConfig, ObstacleConfig, WarningConfig
+from appliance.decision.assess import CORRIDOR_HYSTERESIS_M, TrackThreat
+from appliance.decision.frame import FrameContext
+from appliance.decision.ground_state import MIN_DOWN, CameraPose
+from appliance.decision.threat import near_side_gap, predict_path
+from appliance.messages import EgoMotion, SensorSample, TrackReport
+from appliance.vision.geometry import FloatArray, PinholeCamera, euler_to_matrix, in_image
+from appliance.vision.likelihood import derotate
+from appliance.vision.probes import PointFlow
+
+MIN_RANGE_M = 3.0          # m ahead of the camera, the nearest hypothesis
+RANGE_RATIO = 1.12         # ratio of successive hypothesis distances
+CELLS = 6                  # lateral cells across the corridor
+SIDE_CELLS = 2             # cells of the same width beside it, each side (the roadside test)
+HEIGHTS_M = (0.4, 0.7)     # m above the road, where each hypothesis is probed
+RESIDUAL_CLIP = 3.0        # std, a point's residual counts up to this (a truncated Gaussian)
+CROSS_SIGMAS = 3.0         # flow across the static direction beyond this (std): moving
+MOVER_PROBABILITY = 0.5    # p(x) from which a point belongs to a mover
+SIGMA_FLOOR_PX = 0.05      # px, the flow's error is taken to be at least this
+SHORT_FLOW_PX = 1.0        # px, a road flow shorter than this has an error of its own, not relative
+RELATIVE_ERROR = 0.1       # share of the road's flow added to a point's error (long flows)
+SURFACE_M = (0.25, 0.9)    # m above the road: the part of a hypothesised surface its points test
+MIN_POINTS = 20            # measured points a frame needs to say anything
+EDGE_MARGIN_PX = 6         # px, probes this close to the border are not measured
+GAP_CELLS = 1              # cells beside an obstacle searched for a roadside coming nearer
+BASELINE_S = 0.15          # s, the corridor's flow is measured over about this many seconds
+MOTIONS = 6                # frame motions kept: a baseline spans at most this + 1 frames
+LOST_S = 0.3               # s, an obstacle not seen this long is gone
+
+
+Motion = tuple[FloatArray, FloatArray]   # (R (3, 3), t_m (3,) m): X_cur = R X_prev + t
+
+
+def compose(motions: tuple[Motion | None, ...], now: Motion, frames: int) -> tuple[Motion, int]:
+    """The camera's motion over the last ``frames`` frames (this one's ``now`` and the ones
+    before it in ``motions``, oldest first), and how many frames it spans: fewer where a
+    motion is unknown or the history is shorter."""
+    R, t = now
+    n = 1
+    for m in reversed(motions):
+        if n >= frames or m is None:
+            break
+        R, t = R @ m[0], R @ m[1] + t
+        n += 1
+    return (R, t), n
+
+
+@dataclass(frozen=True)
+class CorridorProbe:
+    """Pixels (M, 2) of the current frame probing the hypotheses, and what reading them needs:
+    where in the frame ``frames_back`` frames ago to start the search at each pixel (where a
+    road point seen there was), each pixel's share of the flow it measures (1 over the number of probes whose
+    Lucas-Kanade windows overlap its own: those measure the same pixels, and their errors
+    with them), its ray in the vehicle frame per unit camera depth (M, 3), the inverse depth
+    (previous frame, 1/m) of the road seen there (``w_road``, 0 above the horizon), the
+    hypothesis distances (m ahead of the camera), the cells' lateral centres (m, from the
+    path), the path's curvature (1/m), the camera's position (vehicle frame, m) and its
+    motion over those frames (R (3, 3), t_m (3,) m, ``X_cur = R X_then + t``)."""
+
+    points: FloatArray
+    guess: FloatArray
+    frames_back: int
+    share: FloatArray
+    rays: FloatArray
+    w_road: FloatArray
+    ranges: FloatArray
+    offsets: FloatArray
+    curvature: float
+    origin: FloatArray
+    R: FloatArray
+    t_m: FloatArray
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """Something standing in the path: its public id, its depth ahead of the camera (m), the
+    vehicle-frame lateral extent it was seen over (y0, y1 m, at that depth), its evidence
+    (nats), when it was first and last seen (s), and whether it continues the roadside
+    (:func:`joins_roadside`)."""
+
+    id: int
+    depth_m: float
+    lateral_m: tuple[float, float]
+    evidence: float
+    since: float
+    seen: float
+    roadside: bool = False
+
+
+@dataclass(frozen=True)
+class StandingState:
+    """evidence: (bins, CELLS + 2 SIDE_CELLS) summed log-likelihood ratios on the distance grid ``ranges``
+    (m ahead of the camera, this frame's); obstacle: what stands in the path, if anything;
+    motions: the camera's motion (R, t_m) into each of the last frames, oldest first (None
+    where the speed was unknown)."""
+
+    evidence: FloatArray
+    obstacle: Obstacle | None = None
+    motions: tuple[Motion | None, ...] = ()
+
+
+def ranges(cfg: ObstacleConfig) -> FloatArray:
+    """The hypothesis distances (m ahead of the camera), a geometric grid."""
+    if cfg.max_range_m <= MIN_RANGE_M:
+        return np.zeros(0)
+    n = int(math.floor(math.log(cfg.max_range_m / MIN_RANGE_M) / math.log(RANGE_RATIO))) + 1
+    return np.asarray(MIN_RANGE_M * RANGE_RATIO ** np.arange(n), dtype=np.float64)
+
+
+def init_standing(cfg: ObstacleConfig) -> StandingState:
+    return StandingState(evidence=np.zeros((len(ranges(cfg)), CELLS + 2 * SIDE_CELLS)))
+
+
+def corridor_width(mount: MountConfig, margin: float) -> float:
+    """The corridor's width (m): the ego vehicle and ``margin`` a side."""
+    return mount.vehicle_width_m + 2.0 * margin
+
+
+def cell_offsets(width_m: float) -> FloatArray:
+    """The lateral cells' centres (m from the path, left +), right to left: ``SIDE_CELLS``
+    beside a corridor ``width_m`` wide, its ``CELLS``, and ``SIDE_CELLS`` beside it."""
+    step = width_m / CELLS
+    n = CELLS + 2 * SIDE_CELLS
+    return np.asarray(-0.5 * width_m + step * (np.arange(n) - SIDE_CELLS + 0.5), dtype=np.float64)
+
+
+def path_y(x: FloatArray, curvature: float) -> FloatArray:
+    """Lateral position (m) of the ego path (a circle through the vehicle origin, tangent to x)
+    at vehicle x (m); x beyond the circle's reach gets NaN."""
+    if abs(curvature) < 1e-6:
+        return np.zeros_like(x)
+    k = curvature
+    with np.errstate(invalid="ignore"):
+        return np.asarray((1.0 - np.sqrt(1.0 - (k * x) ** 2)) / k, dtype=np.float64)
+
+
+def inside(points: FloatArray, boxes: list[tuple[float, float, float, float]]) -> FloatArray:
+    """1 where a point (M, 2) px lies in one of ``boxes`` (u0, v0, u1, v1), else 0: the
+    points on a tracked mover are the mover's."""
+    out = np.zeros(len(points))
+    for u0, v0, u1, v1 in boxes:
+        out[(points[:, 0] >= u0) & (points[:, 0] <= u1) & (points[:, 1] >= v0)
+            & (points[:, 1] <= v1)] = 1.0
+    return out
+
+
+def window_share(uv: FloatArray, window_px: float) -> FloatArray:
+    """Per pixel (M,): 1 over the number of pixels of ``uv`` (itself included) within
+    ``window_px`` of it in both directions, i.e. whose Lucas-Kanade windows overlap its own
+    by half or more."""
+    if len(uv) == 0:
+        return np.zeros(0)
+    d = np.abs(uv[:, None, :] - uv[None, :, :])
+    near = (d[..., 0] < 0.5 * window_px) & (d[..., 1] < 0.5 * window_px)
+    return np.asarray(1.0 / near.sum(axis=1), dtype=np.float64)
+
+
+def frame_motion(ego: EgoMotion, sensors: SensorSample, dt: float) -> Motion | None:
+    """The camera's motion since the previous frame: the refined rotation, the translation
+    direction scaled by the CAN speed; None where the speed is unknown or at a standstill."""
+    speed = sensors.speed_m_s
+    if ego.standstill or not sensors.can_valid or not math.isfinite(speed) or speed <= 0.1:
+        return None
+    return euler_to_matrix(ego.rotation), \
+        np.asarray(ego.translation_dir, dtype=np.float64) * speed * dt
+
+
+def corridor_probe(pose: CameraPose, camera: PinholeCamera, ego: EgoMotion,
+                   sensors: SensorSample, dt: float, mount: MountConfig, margin: float,
+                   window_px: float, motions: tuple[Motion | None, ...], cfg: ObstacleConfig
+                   ) -> CorridorProbe | None:
+    """The pixels probing every hypothesis this frame, measured over the last
+    ``BASELINE_S`` (the parallax grows with the distance driven, the flow's error does not);
+    None when nothing can be measured (at a standstill, or the speed unknown)."""
+    speed = sensors.speed_m_s
+    D = ranges(cfg)
+    if ego.standstill or not sensors.can_valid or not math.isfinite(speed) or speed <= 0.1 \
+            or len(D) == 0:
+        return None
+    curvature = sensors.yaw_rate_rad_s / speed if math.isfinite(sensors.yaw_rate_rad_s) else 0.0
+    offsets = cell_offsets(corridor_width(mount, margin))
+    b, c, h = np.meshgrid(np.arange(len(D)), np.arange(len(offsets)), np.arange(len(HEIGHTS_M)),
+                          indexing="ij")
+    b, c, h = b.ravel(), c.ravel(), h.ravel()
+    x = mount.x_m + D[b]
+    y = path_y(x, curvature) + offsets[c]
+    p = np.column_stack([x, y, np.asarray(HEIGHTS_M)[h]])
+    Rvc = pose.rotation()
+    cam = (p - np.asarray(pose.position)) @ Rvc        # camera frame: Rvc^T (p - position)
+    uv = camera.project(cam)
+    keep = np.isfinite(p[:, 1]) & (cam[:, 2] > 0.5) & in_image(uv, camera.width, camera.height,
+                                                             EDGE_MARGIN_PX)
+    cam, uv = cam[keep], uv[keep]
+    now = frame_motion(ego, sensors, dt)
+    if now is None:
+        return None
+    frames = max(1, int(round(BASELINE_S / dt))) if dt > 0.0 else 1
+    (R, t_m), back = compose(motions, now, frames)
+    x_cur = camera.undistort(uv)
+    rays = (cam / cam[:, 2:3]) @ Rvc.T                 # vehicle frame, per unit camera depth
+    with np.errstate(divide="ignore"):
+        z_road = np.where(rays[:, 2] < -MIN_DOWN, -pose.position[2] / rays[:, 2], np.inf)
+    w_road = np.maximum(np.where(np.isfinite(z_road), 1.0 / (z_road - t_m[2]), 0.0), 0.0)
+    # where a road point seen here was ``back`` frames ago (eq. of likelihood.static_flow)
+    g = (camera.K @ t_m)[None, :2] - t_m[2] * x_cur
+    then = np.column_stack([x_cur - g * w_road[:, None], np.ones(len(uv))]) @ camera.K_inv.T
+    guess = camera.project(then @ R)                   # R^T: back through the rotation
+    guess = np.where(np.isfinite(guess), guess, uv)
+    return CorridorProbe(points=uv, guess=guess, frames_back=back,
+                         share=window_share(uv, window_px), rays=rays, w_road=w_road, ranges=D,
+                         offsets=offsets, curvature=curvature,
+                         origin=np.asarray(pose.position, dtype=np.float64), R=R, t_m=t_m)
+
+
+def hypothesis_evidence(p: CorridorProbe, flow: PointFlow | None, mover_p: FloatArray,
+                        camera: PinholeCamera) -> FloatArray:
+    """This frame's evidence (bins, cells), nats: for each hypothesis (an upright surface at
+    a distance, in a cell), the summed log-likelihood ratio against the road of the points
+    whose ray meets that surface between ``SURFACE_M`` above the road, each point's residuals
+    truncated at ``RESIDUAL_CLIP`` std (no single point decides). Points not measured or moving independently (``mover_p``: p(x) at the
+    points) say nothing.
+
+    The flow's error is measured on the frame itself (:func:`flow_error`), plus
+    ``RELATIVE_ERROR`` of the road's flow at the point."""
+    D, offsets = p.ranges, p.offsets
+    out = np.zeros((len(D), len(offsets)))
+    if flow is None or len(p.points) == 0:
+        return out
+    x_cur = camera.undistort(p.points)
+    x_prev = camera.undistort(p.points - flow.flow)
+    f_t = x_cur - derotate(camera.K, p.R, x_prev)           # translational flow
+    Kt = camera.K @ p.t_m
+    g = Kt[None, :2] - p.t_m[2] * x_cur                     # static flow per inverse depth
+    g2 = np.einsum("ij,ij->i", g, g)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        normal = np.column_stack([-g[:, 1], g[:, 0]]) / np.sqrt(g2)[:, None]
+    measured = flow.valid & np.all(np.isfinite(f_t), axis=1) & np.all(np.isfinite(normal), axis=1) \
+        & (mover_p < MOVER_PROBABILITY)
+    if np.count_nonzero(measured) < MIN_POINTS:
+        return out
+    f_t = f_t - rotation_residual(f_t[measured], normal[measured])
+    along = np.einsum("ij,ij->i", f_t, g)                   # |g| times the flow along g
+    across = np.abs(np.einsum("ij,ij->i", f_t, normal))
+    sigma0 = flow_error(across[measured], (along / np.sqrt(g2) - np.sqrt(g2) * p.w_road)[measured],
+                        (np.sqrt(g2) * p.w_road)[measured])
+    sigma2 = (sigma0 ** 2 + (RELATIVE_ERROR * p.w_road) ** 2 * g2) \
+        * aperture(flow.tensor, g, np.sqrt(g2), measured)
+    w_road = p.w_road
+    ok = measured & (across < CROSS_SIGMAS * np.sqrt(sigma2)) & (p.rays[:, 0] > 1e-6)
+    rays, w_road = p.rays[ok], w_road[ok]
+    along, g2, sigma2, share = along[ok], g2[ok], sigma2[ok], p.share[ok]
+    # where each ray meets each hypothesis' surface (points x hypotheses)
+    lam = D[None, :] / rays[:, :1]                          # camera depth there
+    height = p.origin[2] + lam * rays[:, 2:3]
+    x = p.origin[0] + lam * rays[:, :1]
+    lateral = p.origin[1] + lam * rays[:, 1:2] - path_y(x, p.curvature)
+    width = offsets[-1] - offsets[0] + (offsets[1] - offsets[0] if len(offsets) > 1 else 0.0)
+    cell = np.floor((lateral - (offsets[0] - 0.5 * width / len(offsets))) * len(offsets) / width)
+    on = (height >= SURFACE_M[0]) & (height <= SURFACE_M[1]) & (cell >= 0) \
+        & (cell < len(offsets))
+    w_hyp = 1.0 / (lam - p.t_m[2])
+    g_abs = np.sqrt(g2)[:, None]
+    a = (along / np.sqrt(g2))[:, None]                      # the flow along g, px
+    sigma = np.sqrt(sigma2)[:, None]
+    r_road = np.minimum(((a - g_abs * w_road[:, None]) / sigma) ** 2, RESIDUAL_CLIP ** 2)
+    r_hyp = np.minimum(((a - g_abs * w_hyp) / sigma) ** 2, RESIDUAL_CLIP ** 2)
+    llr = 0.5 * (r_road - r_hyp) * share[:, None]   # the part of the flow across g cancels
+    on &= np.isfinite(llr)
+    i, k = np.nonzero(on)
+    np.add.at(out, (k, cell[i, k].astype(np.int64)), llr[i, k])
+    return out
+
+
+def aperture(tensor: FloatArray | None, g: FloatArray, g_abs: FloatArray,
+             measured: NDArray[np.bool_]) -> FloatArray:
+    """Per point (M,), how much larger than the frame's its flow's error along the static
+    direction ``g`` is (1 at least): the median texture along g over the point's own (the mean
+    squared gradient along g in its window, from the structure ``tensor``). A lane marking
+    pointing at the epipole gives its window no texture along g: where along the marking the
+    window sits is not measured, and Lucas-Kanade's answer there is noise."""
+    n = len(g)
+    if tensor is None or n == 0:
+        return np.ones(n)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        du, dv = g[:, 0] / g_abs, g[:, 1] / g_abs
+        along = tensor[:, 0] * du * du + 2.0 * tensor[:, 1] * du * dv + tensor[:, 2] * dv * dv
+    ok = measured & np.isfinite(along) & (along > 0.0)
+    if not np.any(ok):
+        return np.ones(n)
+    typical = float(np.median(along[ok]))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.where(ok, typical / along, np.inf)
+    return np.maximum(ratio, 1.0)
+
+
+def flow_error(across: FloatArray, road_residual: FloatArray, road_flow: FloatArray) -> float:
+    """The flow's error on this frame (px, std): the robust spread (``1.4826`` median absolute
+    value) of the flow across the static direction (a static point has none: what it has is
+    error), or, where larger, that of the flow along it less the road's at the points whose
+    road flow is shorter than ``SHORT_FLOW_PX`` (most of them see the road, and those whose
+    error is not yet relative); at least ``SIGMA_FLOOR_PX``."""
+    sigma = max(1.4826 * float(np.median(np.abs(across))), SIGMA_FLOOR_PX)
+    short = road_flow < SHORT_FLOW_PX
+    if np.count_nonzero(short) >= MIN_POINTS:
+        r = road_residual[short]
+        sigma = max(sigma, 1.4826 * float(np.median(np.abs(r - np.median(r)))))
+    return sigma
+
+
+def rotation_residual(f_t: FloatArray, normal: FloatArray, iterations: int = 3) -> FloatArray:
+    """The flow (2,) px the refined rotation left over, taken as the same at every point of
+    the corridor (a small rotation, near the image centre): static points have no flow across
+    their static direction (``normal``, unit (M, 2)), whatever their depth, so what they have
+    there is this shift's component plus noise. Least squares, reweighted (Huber, at
+    ``1.345`` std) so that movers do not pull it."""
+    b = np.zeros(2)
+    c = np.einsum("ij,ij->i", f_t, normal)
+    w = np.ones(len(c))
+    for _ in range(iterations):
+        A = normal * w[:, None]
+        M = A.T @ normal
+        if abs(np.linalg.det(M)) < 1e-9 * max(float(np.trace(M)) ** 2, 1e-12):
+            return np.zeros(2)
+        b = np.linalg.solve(M, A.T @ c)
+        r = c - normal @ b
+        s = max(1.4826 * float(np.median(np.abs(r))), SIGMA_FLOOR_PX)
+        w = np.minimum(1.0, 1.345 * s / np.maximum(np.abs(r), 1e-12))
+    return b
+
+
+def carried(evidence: FloatArray, D: FloatArray, travel_m: float, keep: float) -> FloatArray:
+    """The evidence of the previous frame on this frame's grid: each hypothesis came
+    ``travel_m`` nearer (a standing object stays where it is on the road), faded by ``keep``;
+    nothing is known beyond the grid's far end."""
+    if len(D) == 0:
+        return evidence
+    out = np.empty_like(evidence)
+    for c in range(evidence.shape[1]):
+        out[:, c] = np.interp(D + travel_m, D, evidence[:, c], right=0.0)
+    return keep * out
+
+
+def peak(column: FloatArray, D: FloatArray) -> tuple[int, float]:
+    """The bin of the largest evidence along the path and its distance (m), refined by a
+    parabola through its neighbours on the grid's logarithmic scale."""
+    k = int(np.argmax(column))
+    if 0 < k < len(column) - 1:
+        a, b, c = column[k - 1], column[k], column[k + 1]
+        den = a - 2.0 * b + c
+        if den < 0.0:
+            s = float(np.clip(0.5 * (a - c) / den, -0.5, 0.5))
+            return k, float(D[k] * RANGE_RATIO ** s)
+    return k, float(D[k])
+
+
+def nearest_face(evidence: FloatArray, D: FloatArray, threshold: float
+                 ) -> tuple[int, float, int, int] | None:
+    """The face of what stands nearest in the corridor: (bin, depth m, first and last cell) of
+    the nearest peak among the corridor's cells whose evidence reaches ``threshold``, and the
+    cells beside it, contiguous, whose evidence at that bin reaches half of it; None when no
+    cell does. The nearest, not the strongest: edges mix an object's flow with the
+    background's, and look farther than it."""
+    corridor = range(SIDE_CELLS, SIDE_CELLS + CELLS)
+    peaks = [(*peak(evidence[:, c], D), c) for c in corridor
+             if len(D) and evidence[:, c].max() >= threshold]
+    if not peaks:
+        return None
+    k, depth, c = min(peaks, key=lambda kdc: kdc[1])
+    c0 = c1 = c
+    while c0 - 1 in corridor and evidence[k, c0 - 1] >= 0.5 * threshold:
+        c0 -= 1
+    while c1 + 1 in corridor and evidence[k, c1 + 1] >= 0.5 * threshold:
+        c1 += 1
+    return k, depth, c0, c1
+
+
+def joins_roadside(evidence: FloatArray, D: FloatArray, depth: float, c0: int, c1: int,
+                   threshold: float) -> bool:
+    """Whether the face (cells ``c0..c1`` at ``depth`` m) continues a roadside that comes
+    nearer beside it: within ``GAP_CELLS`` of its edge, on either side, something stands a bin
+    or more nearer (evidence at least half ``threshold``). The parked cars and facades at the
+    outside of a bend stand across a path predicted straight on, as a wall receding from the
+    kerb; a car or a pedestrian in the lane has free road beside it."""
+    n = evidence.shape[1]
+    for cells in (range(max(c0 - GAP_CELLS, 0), c0), range(c1 + 1, min(c1 + 1 + GAP_CELLS, n))):
+        for c in cells:
+            strong = np.flatnonzero(evidence[:, c] >= 0.5 * threshold)
+            if len(strong) and D[strong].min() * RANGE_RATIO <= depth:
+                return True
+    return False
+
+
+def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow | None,
+                  mover_p: FloatArray, t: float, dt: float, speed: float, motion: Motion | None,
+                  camera: PinholeCamera, mount: MountConfig, margin: float, next_id: int,
+                  cfg: ObstacleConfig) -> tuple[StandingState, int]:
+    """One frame: the evidence carried on and this frame's added; the obstacle, if one stands
+    in the path (a new one takes ``next_id``); ``motion``, the camera's since the previous
+    frame, kept for the next frames' probes. Returns the state and the next free id."""
+    D = ranges(cfg)
+    keep = math.exp(-max(dt, 0.0) / cfg.memory_s) if cfg.memory_s > 0.0 else 0.0
+    evidence = carried(state.evidence, D, max(speed, 0.0) * dt, keep)
+    if p is not None:
+        evidence = evidence + hypothesis_evidence(p, flow, mover_p, camera)
+    best = evidence.max(axis=1) if len(D) else np.zeros(0)
+    obstacle = state.obstacle
+    if obstacle is not None and t - obstacle.seen > LOST_S:
+        obstacle = None
+    face = nearest_face(evidence, D, cfg.evidence_threshold)
+    if face is not None:
+        k, depth, c0, c1 = face
+        offsets = cell_offsets(corridor_width(mount, margin))
+        half = 0.5 * corridor_width(mount, margin) / CELLS
+        lateral = (float(offsets[c0] - half), float(offsets[c1] + half))
+        side = joins_roadside(evidence, D, depth, c0, c1, cfg.evidence_threshold)
+        ident, since = (next_id, t) if obstacle is None else (obstacle.id, obstacle.since)
+        if obstacle is None:
+            next_id += 1
+        obstacle = Obstacle(id=ident, depth_m=depth, lateral_m=lateral,
+                            evidence=float(evidence[k, c0:c1 + 1].max()), since=since, seen=t,
+                            roadside=side)
+    motions = (*state.motions, motion)[-MOTIONS:]
+    return StandingState(evidence=evidence, obstacle=obstacle, motions=motions), next_id
+
+
+def obstacle_box(ob: Obstacle, pose: CameraPose, camera: PinholeCamera, mount: MountConfig,
+                 curvature: float) -> tuple[float, float, float, float]:
+    """The image box (u0, v0, u1, v1) px of the part of ``ob`` the cue measured: its lateral
+    extent, from the road up to ``TOP_M``, clipped to the image."""
+    x = mount.x_m + ob.depth_m
+    yc = float(path_y(np.array([x]), curvature)[0])
+    corners = np.array([[x, yc + y, z] for y in ob.lateral_m for z in (0.0, TOP_M)])
+    cam = (corners - np.asarray(pose.position)) @ pose.rotation()
+    uv = camera.project(cam)
+    if not np.all(np.isfinite(uv)):
+        return (0.0, 0.0, 0.0, 0.0)
+    u0, v0 = np.clip(uv.min(axis=0), 0.0, [camera.width - 1.0, camera.height - 1.0])
+    u1, v1 = np.clip(uv.max(axis=0), 0.0, [camera.width - 1.0, camera.height - 1.0])
+    return (round(float(u0), 1), round(float(v0), 1), round(float(u1), 1), round(float(v1), 1))
+
+
+TOP_M = 1.0   # m, the top of an obstacle's reported box (the probes reach HEIGHTS_M)
+
+
+def obstacle_threat(ob: Obstacle, f: FrameContext, cfg: WarningConfig,
+                    evidence_threshold: float) -> TrackThreat:
+    """The threat of an obstacle standing in the path: a static object ``ob.depth_m`` ahead,
+    across its lateral extent, in the path if the ego vehicle's own width (no margin) meets
+    one of its cells' centres; its time to collision from the ego's arc and braking
+    (``threat.predict_path``); its confidence ``1 - exp(-evidence / threshold)``."""
+    mount, speed, yaw = f.mount, f.speed, f.yaw_rate
+    curvature = yaw / speed if speed > 0.1 else 0.0
+    x = mount.x_m + ob.depth_m
+    y = float(path_y(np.array([x]), curvature)[0]) + 0.5 * (ob.lateral_m[0] + ob.lateral_m[1])
+    pos = np.array([x, y])
+    # in the path when the vehicle itself would strike it: the margin a mover's predicted path
+    # needs is not for an object that does not move; its extent is known to a cell, so the
+    # test is on its cells' centres
+    cell = corridor_width(mount, cfg.corridor_margin_m) / CELLS
+    radius = max(0.5 * (ob.lateral_m[1] - ob.lateral_m[0]) - 0.5 * cell, 0.0)
+    still = np.zeros(2)
+    base = predict_path(pos, still, speed, yaw, mount, 0.0, radius, cfg.horizon_s, 0.0,
+                        f.braking)
+    wide = predict_path(pos, still, speed, yaw, mount, CORRIDOR_HYSTERESIS_M, radius,
+                        cfg.horizon_s, 0.0, f.braking)
+    ttc = base.ttc if base.ttc is not None else wide.ttc
+    azimuth = math.atan2(y - mount.y_m, x - mount.x_m)
+    report = TrackReport(
+        id=ob.id,
+        bbox=obstacle_box(ob, f.pose, f.camera, mount, curvature),
+        probability=round(1.0 - math.exp(-ob.evidence / evidence_threshold), 4),
+        flow=(0.0, 0.0),
+        ttc_s=None if ttc is None else round(max(ttc, 0.0), 3),
+        distance_m=round(near_side_gap(pos, radius, mount, f.sensors.pan_rad), 2),
+        bearing_rad=round(azimuth, 4),
+    )
+    return TrackThreat(report=report, on_course=base.ttc is not None,
+                       on_course_wide=wide.ttc is not None,
+                       miss_m=None if base.ttc is not None else base.closest, moving=False,
+                       speed_m_s=0.0, standing=True, roadside=ob.roadside,
+                       ego_known=f.ego_known)

@@ -58,7 +58,8 @@ class TrackThreat:
     probability tested against ``min_probability`` when it is not the track's own
     (:func:`warnings.pool_covered`), else None; standing: an obstacle standing in the path
     (``standing.py``), static by construction, its evidence its parallax; roadside: such an
-    obstacle continues the roadside (the outside of a bend the path is predicted straight into)."""
+    obstacle continues the roadside (the outside of a bend the path is predicted straight into);
+    closing: how much nearer such an obstacle comes per metre driven (None: not yet known)."""
 
     report: TrackReport
     on_course: bool
@@ -72,6 +73,7 @@ class TrackThreat:
     ego_known: bool = True
     standing: bool = False
     roadside: bool = False
+    closing: float | None = None
 
     @property
     def ttc(self) -> float | None:

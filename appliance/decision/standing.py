@@ -59,7 +59,8 @@ MIN_RANGE_M = 3.0          # m ahead of the camera, the nearest hypothesis
 RANGE_RATIO = 1.12         # ratio of successive hypothesis distances
 CELLS = 6                  # lateral cells across the corridor
 SIDE_CELLS = 2             # cells of the same width beside it, each side (the roadside test)
-HEIGHTS_M = (0.4, 0.7)     # m above the road, where each hypothesis is probed
+HEIGHTS_M = (0.4, 0.7)     # m above the road, where each hypothesis is probed (beside the
+                           #   corridor: the first only)
 RESIDUAL_CLIP = 3.0        # std, a point's residual counts up to this (a truncated Gaussian)
 CROSS_SIGMAS = 3.0         # flow across the static direction beyond this (std): moving
 MOVER_PROBABILITY = 0.5    # p(x) from which a point belongs to a mover
@@ -72,6 +73,8 @@ EDGE_MARGIN_PX = 6         # px, probes this close to the border are not measure
 GAP_CELLS = 1              # cells beside an obstacle searched for a roadside coming nearer
 BASELINE_S = 0.15          # s, the corridor's flow is measured over about this many seconds
 MOTIONS = 6                # frame motions kept: a baseline spans at most this + 1 frames
+HISTORY_S = 0.5            # s of driving (at the current speed) over which an obstacle's closing is fit
+MIN_HISTORY_M = 2.0        # m, an obstacle's closing is known once seen over this much driving
 LOST_S = 0.3               # s, an obstacle not seen this long is gone
 
 
@@ -122,8 +125,9 @@ class CorridorProbe:
 class Obstacle:
     """Something standing in the path: its public id, its depth ahead of the camera (m), the
     vehicle-frame lateral extent it was seen over (y0, y1 m, at that depth), its evidence
-    (nats), when it was first and last seen (s), and whether it continues the roadside
-    (:func:`joins_roadside`)."""
+    (nats), when it was first and last seen (s), whether it continues the roadside
+    (:func:`joins_roadside`), and its recent depths against the distance the car drove
+    (``history``: (driven m, depth m), oldest first, at most ``HISTORY_S`` back)."""
 
     id: int
     depth_m: float
@@ -132,6 +136,21 @@ class Obstacle:
     since: float
     seen: float
     roadside: bool = False
+    history: tuple[tuple[float, float], ...] = ()
+
+    @property
+    def closing(self) -> float | None:
+        """How much nearer it comes per metre driven (1: it stands; the least-squares slope of
+        its depths against the distance driven), None before it was seen over
+        ``MIN_HISTORY_M`` of driving. The outside of a bend the path is predicted along stays
+        ahead as the car turns: it does not come nearer."""
+        if len(self.history) < 3:
+            return None
+        s = np.array([h[0] for h in self.history])
+        d = np.array([h[1] for h in self.history])
+        if s[-1] - s[0] < MIN_HISTORY_M:
+            return None
+        return float(-np.polyfit(s, d, 1)[0])
 
 
 @dataclass(frozen=True)
@@ -139,11 +158,12 @@ class StandingState:
     """evidence: (bins, CELLS + 2 SIDE_CELLS) summed log-likelihood ratios on the distance grid ``ranges``
     (m ahead of the camera, this frame's); obstacle: what stands in the path, if anything;
     motions: the camera's motion (R, t_m) into each of the last frames, oldest first (None
-    where the speed was unknown)."""
+    where the speed was unknown); driven_m: the distance driven since the start (m)."""
 
     evidence: FloatArray
     obstacle: Obstacle | None = None
     motions: tuple[Motion | None, ...] = ()
+    driven_m: float = 0.0
 
 
 def ranges(cfg: ObstacleConfig) -> FloatArray:
@@ -229,6 +249,8 @@ def corridor_probe(pose: CameraPose, camera: PinholeCamera, ego: EgoMotion,
     b, c, h = np.meshgrid(np.arange(len(D)), np.arange(len(offsets)), np.arange(len(HEIGHTS_M)),
                           indexing="ij")
     b, c, h = b.ravel(), c.ravel(), h.ravel()
+    side = (c < SIDE_CELLS) | (c >= SIDE_CELLS + CELLS)
+    b, c, h = b[~side | (h == 0)], c[~side | (h == 0)], h[~side | (h == 0)]  # one height beside
     x = mount.x_m + D[b]
     y = path_y(x, curvature) + offsets[c]
     p = np.column_stack([x, y, np.asarray(HEIGHTS_M)[h]])
@@ -445,6 +467,7 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
     in the path (a new one takes ``next_id``); ``motion``, the camera's since the previous
     frame, kept for the next frames' probes. Returns the state and the next free id."""
     D = ranges(cfg)
+    driven = state.driven_m + max(speed, 0.0) * dt
     keep = math.exp(-max(dt, 0.0) / cfg.memory_s) if cfg.memory_s > 0.0 else 0.0
     evidence = carried(state.evidence, D, max(speed, 0.0) * dt, keep)
     if p is not None:
@@ -461,13 +484,17 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
         lateral = (float(offsets[c0] - half), float(offsets[c1] + half))
         side = joins_roadside(evidence, D, depth, c0, c1, cfg.evidence_threshold)
         ident, since = (next_id, t) if obstacle is None else (obstacle.id, obstacle.since)
+        history = () if obstacle is None else obstacle.history
         if obstacle is None:
             next_id += 1
+        history = tuple(h for h in (*history, (driven, depth))
+                        if h[0] >= driven - HISTORY_S * max(speed, 0.1))
         obstacle = Obstacle(id=ident, depth_m=depth, lateral_m=lateral,
                             evidence=float(evidence[k, c0:c1 + 1].max()), since=since, seen=t,
-                            roadside=side)
+                            roadside=side, history=history)
     motions = (*state.motions, motion)[-MOTIONS:]
-    return StandingState(evidence=evidence, obstacle=obstacle, motions=motions), next_id
+    return StandingState(evidence=evidence, obstacle=obstacle, motions=motions,
+                         driven_m=driven), next_id
 
 
 def obstacle_box(ob: Obstacle, pose: CameraPose, camera: PinholeCamera, mount: MountConfig,
@@ -524,5 +551,5 @@ def obstacle_threat(ob: Obstacle, f: FrameContext, cfg: WarningConfig,
     return TrackThreat(report=report, on_course=base.ttc is not None,
                        on_course_wide=wide.ttc is not None,
                        miss_m=None if base.ttc is not None else base.closest, moving=False,
-                       speed_m_s=0.0, standing=True, roadside=ob.roadside,
+                       speed_m_s=0.0, standing=True, roadside=ob.roadside, closing=ob.closing,
                        ego_known=f.ego_known)

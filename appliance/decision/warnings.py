@@ -51,6 +51,7 @@ from appliance.config import WarningConfig
 from appliance.decision.assess import TrackThreat
 from appliance.messages import TrackReport, WarningEvent
 
+MIN_CLOSING = 0.5             # a standing obstacle comes nearer by at least this per metre driven
 FAST_MOVER_M_S = 5.0          # m/s over ground: a car or cyclist needs no min_probability
 HIDDEN_MIN_PROBABILITY = 0.55  # min_probability of a hidden track (its highest while seen)
 LEVEL_NAMES = {1: "caution", 2: "warning"}
@@ -97,6 +98,10 @@ def indication(th: TrackThreat, threshold: float, cfg: WarningConfig) -> str | N
         return "not moving over ground"
     if th.standing and th.roadside:
         return "stands at the roadside, which comes nearer beside it (a bend)"
+    if th.standing and th.closing is None:
+        return "standing: not yet seen coming nearer"
+    if th.standing and th.closing < MIN_CLOSING:
+        return f"standing: comes {th.closing:.2f} m nearer per metre driven"
     if th.height_m is not None and th.height_m < cfg.min_height_m:
         return f"box {th.height_m:.2f} m tall, below {cfg.min_height_m:.2f} m"
     p = th.report.probability if th.evidence is None else th.evidence

@@ -1,0 +1,280 @@
+"""The obstacle-in-path cue (decision/standing.py): parallax of the corridor against the road.
+
+Flows are synthesised exactly from the geometry (a flat road, an upright surface standing on
+it) with seeded noise, so each test states what the cue must conclude from a scene and could
+fail if the geometry or the evidence were wrong.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from appliance.config import Config
+from appliance.decision.frame import FrameContext
+from appliance.decision.ground_state import CameraPose
+from appliance.decision.standing import (
+    CELLS,
+    SIDE_CELLS,
+    CorridorProbe,
+    Obstacle,
+    cell_offsets,
+    compose,
+    corridor_probe,
+    hypothesis_evidence,
+    init_standing,
+    joins_roadside,
+    nearest_face,
+    obstacle_threat,
+    ranges,
+    rotation_residual,
+    standing_step,
+    window_share,
+)
+from appliance.decision.warnings import indication
+from appliance.messages import EgoMotion, SensorSample
+from appliance.vision.geometry import PinholeCamera
+from appliance.vision.probes import PointFlow
+
+CAM = PinholeCamera(640, 480, 700.0, 700.0, 319.5, 239.5)
+FPS = 30.0
+DT = 1.0 / FPS
+SPEED = 15.0
+
+
+def ego_motion() -> EgoMotion:
+    """Straight ahead, no rotation: the camera moves along its axis (t_z < 0)."""
+    d = np.array([0.0, 0.0, -1.0])
+    return EgoMotion(rotation=np.zeros(3), translation_dir=d, epipole_px=(319.5, 239.5),
+                     prior_rotation=np.zeros(3), prior_translation_dir=d,
+                     prior_epipole_px=(319.5, 239.5), inliers=100, confident=True)
+
+
+def pose(cfg: Config) -> CameraPose:
+    m = cfg.mount
+    return CameraPose((m.x_m, m.y_m, m.z_m), m.pitch_rad, 0.0, 0.0)
+
+
+def probe(cfg: Config, yaw_rate: float = 0.0) -> CorridorProbe:
+    sensors = SensorSample(t=0.0, speed_m_s=SPEED, yaw_rate_rad_s=yaw_rate)
+    motion = (np.eye(3), np.array([0.0, 0.0, -SPEED * DT]))
+    p = corridor_probe(pose(cfg), CAM, ego_motion(), sensors, DT, cfg.mount,
+                       cfg.warning.corridor_margin_m, cfg.flow.window_px, (motion,) * 6,
+                       cfg.obstacle)
+    assert p is not None
+    return p
+
+
+def scene_depth(cfg: Config, p: CorridorProbe, wall: tuple[float, float, float] | None
+                ) -> np.ndarray:
+    """The camera depth (m, now) each probe sees: the flat road, or an upright wall
+    (depth ahead of the camera m, lateral extent y0..y1 m) where its ray meets the wall first
+    (the wall 1.5 m tall)."""
+    h = cfg.mount.z_m
+    z_road = np.where(p.rays[:, 2] < 0.0, -h / np.minimum(p.rays[:, 2], -1e-9), np.inf)
+    z = z_road.copy()
+    if wall is not None:
+        depth, y0, y1 = wall
+        lam = depth / p.rays[:, 0]
+        y = p.origin[1] + lam * p.rays[:, 1]
+        height = h + lam * p.rays[:, 2]
+        hit = (lam < z_road) & (y >= y0) & (y <= y1) & (height >= 0.0) & (height <= 1.5)
+        z = np.where(hit, lam, z)
+    return z
+
+
+def flows(p: CorridorProbe, z: np.ndarray, noise_px: float, seed: int = 0) -> PointFlow:
+    """The flow (current minus ``frames_back`` ago) of static points at camera depths ``z``
+    (no rotation), plus Gaussian noise."""
+    x = CAM.undistort(p.points)
+    g = (CAM.K @ p.t_m)[None, :2] - p.t_m[2] * x
+    w = np.where(np.isfinite(z), 1.0 / (z - p.t_m[2]), 0.0)
+    f = g * w[:, None] + np.random.default_rng(seed).normal(0.0, noise_px, (len(x), 2))
+    return PointFlow(f, np.ones(len(x), dtype=bool))
+
+
+def test_the_grid_spans_the_corridor_and_its_sides(default_config: Config) -> None:
+    cfg = default_config
+    D = ranges(cfg.obstacle)
+    assert D[0] == pytest.approx(3.0) and D[-1] <= cfg.obstacle.max_range_m
+    assert np.all(np.diff(np.log(D)) == pytest.approx(np.log(D[1] / D[0])))
+    width = cfg.mount.vehicle_width_m + 2.0 * cfg.warning.corridor_margin_m
+    off = cell_offsets(width)
+    assert len(off) == CELLS + 2 * SIDE_CELLS
+    assert np.allclose(off, -off[::-1])            # symmetric about the path
+    corridor = off[SIDE_CELLS:SIDE_CELLS + CELLS]
+    assert corridor[0] - 0.5 * width / CELLS == pytest.approx(-0.5 * width)
+    assert cfg.obstacle.max_range_m > 0.0
+
+
+def test_motions_compose_over_the_baseline_and_stop_at_an_unknown_one() -> None:
+    a = (np.eye(3), np.array([0.0, 0.0, -0.5]))
+    c, s = math.cos(0.01), math.sin(0.01)
+    Ry = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+    b = (Ry, np.array([0.1, 0.0, -0.5]))
+    (R, t), n = compose((a,), b, 4)
+    assert n == 2
+    X0 = np.array([1.0, 2.0, 30.0])
+    assert np.allclose(R @ X0 + t, b[0] @ (a[0] @ X0 + a[1]) + b[1])
+    (_, t2), n2 = compose((a, None, a), b, 4)
+    assert n2 == 2 and np.allclose(t2, b[0] @ a[1] + b[1])
+    assert compose((a, a), b, 1)[1] == 1
+
+
+def test_the_probe_spans_several_frames_and_starts_where_the_road_was(
+        default_config: Config) -> None:
+    p = probe(default_config)
+    assert p.frames_back == round(0.15 * FPS)
+    assert p.t_m[2] == pytest.approx(-SPEED * DT * p.frames_back)
+    # a road point's search starts exactly where it was
+    z = scene_depth(default_config, p, None)
+    f = flows(p, z, 0.0)
+    below = np.isfinite(z)
+    assert np.allclose((p.points - f.flow)[below], p.guess[below], atol=1e-6)
+
+
+def test_a_flat_road_gives_no_evidence_of_anything_standing(default_config: Config) -> None:
+    p = probe(default_config)
+    z = scene_depth(default_config, p, None)
+    E = hypothesis_evidence(p, flows(p, z, 0.05), np.zeros(len(p.points)), CAM)
+    corridor = E[:, SIDE_CELLS:SIDE_CELLS + CELLS]
+    assert corridor.max() < 2.0
+    assert corridor.sum() < -50.0      # the road is what is seen
+
+
+def test_a_wall_in_the_lane_is_found_at_its_distance(default_config: Config) -> None:
+    """One frame's evidence peaks at the wall's distance (one frame says less the farther the
+    wall: the threshold is reached over several, see the last test)."""
+    cfg = default_config
+    p = probe(cfg)
+    for depth in (12.0, 25.0):
+        z = scene_depth(cfg, p, (depth, -0.9, 0.9))
+        E = hypothesis_evidence(p, flows(p, z, 0.05), np.zeros(len(p.points)), CAM)
+        face = nearest_face(E, p.ranges, 5.0)
+        assert face is not None
+        _, found, c0, c1 = face
+        assert found == pytest.approx(depth, rel=0.1)
+        # it covers the ego's width: the corridor's middle cells
+        assert c0 <= SIDE_CELLS + 1 and c1 >= SIDE_CELLS + CELLS - 2
+        assert not joins_roadside(E, p.ranges, found, c0, c1, 5.0)
+
+
+def test_points_on_a_mover_say_nothing(default_config: Config) -> None:
+    cfg = default_config
+    p = probe(cfg)
+    z = scene_depth(cfg, p, (15.0, -0.9, 0.9))
+    f = flows(p, z, 0.05)
+    E = hypothesis_evidence(p, f, np.ones(len(p.points)), CAM)
+    assert np.all(E == 0.0)
+    invalid = dataclasses.replace(f, valid=np.zeros(len(p.points), dtype=bool))
+    assert np.all(hypothesis_evidence(p, invalid, np.zeros(len(p.points)), CAM) == 0.0)
+
+
+def test_a_wall_receding_from_the_kerb_across_the_path_is_the_roadside() -> None:
+    D = 3.0 * 1.12 ** np.arange(28)
+    n = CELLS + 2 * SIDE_CELLS
+    E = np.full((len(D), n), -5.0)
+    k = int(np.argmin(np.abs(D - 20.0)))
+    E[k, SIDE_CELLS] = 40.0                       # the corridor's right edge, at 20 m
+    E[k - 2, SIDE_CELLS - 1] = 40.0               # beside it, outside: nearer, at 16 m
+    face = nearest_face(E, D, 16.0)
+    assert face is not None and face[2] == face[3] == SIDE_CELLS
+    assert joins_roadside(E, D, face[1], face[2], face[3], 16.0)
+    E[k - 2, SIDE_CELLS - 1] = -5.0               # free road beside it
+    E[k + 3, SIDE_CELLS - 1] = 40.0               # and the roadside farther away
+    assert not joins_roadside(E, D, face[1], face[2], face[3], 16.0)
+
+
+def test_the_rotation_left_over_is_measured_across_the_static_direction() -> None:
+    rng = np.random.default_rng(3)
+    angle = rng.uniform(0.3, 2.8, 200)           # static directions below the epipole
+    normal = np.column_stack([-np.sin(angle), np.cos(angle)])
+    along = np.column_stack([np.cos(angle), np.sin(angle)]) * rng.uniform(0.0, 3.0, (200, 1))
+    shift = np.array([0.12, -0.07])
+    f = along + shift + rng.normal(0.0, 0.02, (200, 2))
+    f[:20] += np.array([2.0, 0.0])               # a mover's points
+    assert rotation_residual(f, normal) == pytest.approx(shift, abs=0.02)
+
+
+def test_probes_in_one_window_share_what_it_measures() -> None:
+    uv = np.array([[100.0, 100.0], [102.0, 101.0], [300.0, 300.0]])
+    assert window_share(uv, 9) == pytest.approx([0.5, 0.5, 1.0])
+
+
+STATIC = ((0.0, 28.0), (1.5, 26.5), (3.0, 25.0))   # (driven, depth): it stands
+
+
+def frame(cfg: Config, speed: float = SPEED, accel: float = 0.0) -> FrameContext:
+    return FrameContext(t=0.0, dt=DT, pose=pose(cfg),
+                        sensors=SensorSample(t=0.0, speed_m_s=speed, yaw_rate_rad_s=0.0),
+                        ego=ego_motion(), odo=(0.0, 0.0, 0.0), camera=CAM, mount=cfg.mount,
+                        window_px=cfg.flow.window_px, flow_std_px=0.5, accel=accel)
+
+
+def test_an_obstacle_in_the_lane_warns_by_the_distance_driven(default_config: Config) -> None:
+    cfg = default_config
+    ob = Obstacle(id=7, depth_m=25.0, lateral_m=(-0.4, 0.4), evidence=40.0, since=0.0, seen=0.0,
+                  history=STATIC)
+    th = obstacle_threat(ob, frame(cfg), cfg.warning, cfg.obstacle.evidence_threshold)
+    gap = 25.0 - (cfg.mount.vehicle_front_m - cfg.mount.x_m)
+    assert th.on_course and th.ttc == pytest.approx(gap / SPEED, abs=0.06)
+    assert th.report.distance_m == pytest.approx(gap, abs=0.05)
+    assert indication(th, 2.0, cfg.warning) is None        # standing: no motion needed
+    assert indication(th, 1.0, cfg.warning).startswith("ttc")
+    # braking harder than needed to stop short of it: no contact
+    stops = obstacle_threat(ob, frame(cfg, accel=-8.0), cfg.warning, 16.0)
+    assert stops.ttc is None and not stops.on_course
+    # the roadside is not warned of, and says why
+    side = obstacle_threat(dataclasses.replace(ob, roadside=True), frame(cfg), cfg.warning, 16.0)
+    assert "roadside" in indication(side, 2.0, cfg.warning)
+    # seen too briefly, or staying ahead as the car drives (the outside of a bend): no level
+    brief = obstacle_threat(dataclasses.replace(ob, history=STATIC[-2:]), frame(cfg),
+                            cfg.warning, 16.0)
+    assert indication(brief, 2.0, cfg.warning) == "standing: not yet seen coming nearer"
+    ahead = dataclasses.replace(ob, history=((0.0, 25.2), (1.5, 25.0), (3.0, 25.1)))
+    assert ahead.closing == pytest.approx(0.03, abs=0.05)
+    assert "nearer per metre driven" in indication(
+        obstacle_threat(ahead, frame(cfg), cfg.warning, 16.0), 2.0, cfg.warning)
+
+
+def test_an_obstacle_only_in_the_margin_is_beside_the_path(default_config: Config) -> None:
+    cfg = default_config
+    half = 0.5 * cfg.mount.vehicle_width_m + cfg.warning.corridor_margin_m
+    margin_cell = (-half, -half + 0.4)          # its centre outside the vehicle's width
+    ob = Obstacle(id=3, depth_m=20.0, lateral_m=margin_cell, evidence=40.0, since=0.0, seen=0.0,
+                  history=STATIC)
+    th = obstacle_threat(ob, frame(cfg), cfg.warning, 16.0)
+    assert not th.on_course
+    assert indication(th, 2.0, cfg.warning).startswith("path misses corridor")
+    inner = dataclasses.replace(ob, lateral_m=(-half, -half + 0.8))
+    assert obstacle_threat(inner, frame(cfg), cfg.warning, 16.0).on_course
+
+
+def test_evidence_accumulates_on_the_road_and_an_obstacle_keeps_its_id(
+        default_config: Config) -> None:
+    """Frame after frame a wall comes nearer by the distance driven: the evidence, carried on
+    the road, passes the threshold; the obstacle keeps one id as it comes nearer."""
+    cfg = default_config
+    state = init_standing(cfg.obstacle)
+    ids, depths = [], []
+    wall = 40.0
+    next_id = 5
+    for k in range(40):
+        p = probe(cfg)
+        z = scene_depth(cfg, p, (wall, -0.9, 0.9))
+        motion = (np.eye(3), np.array([0.0, 0.0, -SPEED * DT]))
+        state, next_id = standing_step(state, p, flows(p, z, 0.08, seed=k),
+                                       np.zeros(len(p.points)), k * DT, DT, SPEED, motion, CAM,
+                                       cfg.mount, cfg.warning.corridor_margin_m, next_id,
+                                       cfg.obstacle)
+        if state.obstacle is not None and state.obstacle.seen == k * DT:
+            ids.append(state.obstacle.id)
+            depths.append((state.obstacle.depth_m, wall))
+        wall -= SPEED * DT
+    assert ids and set(ids) == {5} and next_id == 6
+    assert all(abs(d - w) <= 0.12 * w for d, w in depths[-10:])
+    assert len(state.motions) == 6
+    assert state.obstacle is not None and state.obstacle.closing == pytest.approx(1.0, abs=0.25)

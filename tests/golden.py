@@ -42,6 +42,12 @@ GOLDEN = {
     # 0.5-0.7 and a closing speed that grows all the way; warned only with the fast-mover rule
     # and the 3-D state's acceleration
     "lead_car_braking-0": ("lead_car_braking", 0, 6.0),
+    # a car standing in the lane (CCRs, 30 km/h): static scene to the detector, warned of by
+    # its parallax against the road (decision/standing.py)
+    "car_stopped_in_lane_30-3": ("car_stopped_in_lane_30", 3, 8.0),
+    # the outside of a left bend, parked cars: the path predicted from the yaw rate runs into
+    # them; they continue the roadside and stay ahead as the car turns: nothing is warned
+    "bend_static-3": ("bend_static", 3, 11.0),
 }
 # Tolerances of the comparison: the same warning changes in the same order, each within
 # FRAME_TOLERANCE frames and TTC_TOLERANCE_S of the reference. They absorb floating-point

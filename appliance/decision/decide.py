@@ -166,8 +166,8 @@ def decide(state: DecisionState, obs: Observation, flows: Mapping[ProbeKey, Poin
     before_standing = state.standing if state.standing is not None else init_standing(cfg.obstacle)
     standing, next_id = standing_step(
         before_standing, cp, measured.get(OBSTACLE_PROBE), mover_p, f.t, f.dt, f.speed,
-        frame_motion(f.ego, f.sensors, f.dt), f.camera, f.mount, cfg.warning.corridor_margin_m, obs.tracker.next_id,
-        cfg.obstacle)
+        frame_motion(f.ego, f.sensors, f.dt), f.camera, f.mount, cfg.warning.corridor_margin_m,
+        obs.tracker.next_id, cfg.obstacle)
     ob = standing.obstacle
     if ob is not None and ob.seen == f.t:
         threats.append(obstacle_threat(ob, f, cfg.warning, cfg.obstacle.evidence_threshold))

@@ -9,22 +9,25 @@ distance D is nearer than the road seen at its pixels: its flow is longer by ``w
 
 Hypotheses: an upright surface ``D`` m ahead of the camera, on the ego path predicted from the
 CAN speed and yaw rate, in one of ``CELLS`` lateral cells across the corridor (the ego width
-plus ``warning.corridor_margin_m`` a side), probed at ``HEIGHTS_M`` above the road; the
-distances form a geometric grid from ``MIN_RANGE_M`` to ``obstacle.max_range_m``. Vision
-measures the flow at those pixels (:func:`corridor_probe` names them); per point the
-log-likelihood ratio of "a static surface at D" against "the road", for the flow's error
-along the static flow's direction, measured across it (:func:`point_evidence`), clipped at
-``CLIP_NATS`` so that no single point decides. A point moving independently (its flow
-``CROSS_SIGMAS`` std or more across the static direction, or p(x) >= ``MOVER_PROBABILITY``)
-says nothing: it is a mover, and the movers' tracks warn of it.
+plus ``warning.corridor_margin_m`` a side) or ``SIDE_CELLS`` beside it, probed at
+``HEIGHTS_M`` above the road; the distances form a geometric grid from ``MIN_RANGE_M`` to
+``obstacle.max_range_m``. Vision measures the flow at those pixels over ``BASELINE_S``
+(:func:`corridor_probe` names them and where each search starts); per point and hypothesis
+whose surface its ray meets, the log-likelihood ratio of "a static surface at D" against "the
+road", residuals truncated at ``RESIDUAL_CLIP`` std so that no single point decides
+(:func:`hypothesis_evidence`). A point moving independently (its flow ``CROSS_SIGMAS`` std or
+more across the static direction, p(x) >= ``MOVER_PROBABILITY``, or on a moving track) says
+nothing: it is a mover, and the movers' tracks warn of it.
 
 The evidence of a hypothesis is summed over frames, anchored to the road (a standing object
 comes nearer by the distance driven), with a fading memory (``obstacle.memory_s``). Where a
-cell's evidence exceeds ``obstacle.evidence_threshold``, something stands there: its
-distance is the peak of the evidence along the path, its box the cells that carry it. An
-obstacle is static: its time to collision and whether it is in the path come from
-``threat.predict_path`` for an object that does not move, the ego driving its arc and braking
-as its CAN speed says (a driver braking to a stop short of it is not warned).
+corridor cell's evidence reaches ``obstacle.evidence_threshold``, something stands there: its
+distance is the nearest such cell's peak along the path, its extent the cells beside it that
+carry half of it (:func:`nearest_face`); the roadside test (:func:`joins_roadside`) and its
+closing (``Obstacle.closing``) tell it from the outside of a bend. An obstacle is static: its
+time to collision and whether it is in the path come from ``threat.predict_path`` for an
+object that does not move, the ego driving its arc and braking as its CAN speed says (a driver
+braking to a stop short of it is not warned).
 
 An object approaching along the path at a closing speed below the ego's (a lead car braking
 to a stop) looks like a static surface farther away than it is, by the ratio of the two
@@ -73,7 +76,7 @@ EDGE_MARGIN_PX = 6         # px, probes this close to the border are not measure
 GAP_CELLS = 1              # cells beside an obstacle searched for a roadside coming nearer
 BASELINE_S = 0.15          # s, the corridor's flow is measured over about this many seconds
 MOTIONS = 6                # frame motions kept: a baseline spans at most this + 1 frames
-HISTORY_S = 0.5            # s of driving (at the current speed) over which an obstacle's closing is fit
+HISTORY_S = 0.5            # s of driving (at the current speed) an obstacle's closing is fit over
 MIN_HISTORY_M = 2.0        # m, an obstacle's closing is known once seen over this much driving
 LOST_S = 0.3               # s, an obstacle not seen this long is gone
 
@@ -99,9 +102,9 @@ def compose(motions: tuple[Motion | None, ...], now: Motion, frames: int) -> tup
 class CorridorProbe:
     """Pixels (M, 2) of the current frame probing the hypotheses, and what reading them needs:
     where in the frame ``frames_back`` frames ago to start the search at each pixel (where a
-    road point seen there was), each pixel's share of the flow it measures (1 over the number of probes whose
-    Lucas-Kanade windows overlap its own: those measure the same pixels, and their errors
-    with them), its ray in the vehicle frame per unit camera depth (M, 3), the inverse depth
+    road point seen there was), each pixel's share of the flow it measures (1 over the number
+    of probes whose Lucas-Kanade windows overlap its own: those measure the same pixels, and
+    their errors with them), its ray in the vehicle frame per unit camera depth (M, 3), the inverse depth
     (previous frame, 1/m) of the road seen there (``w_road``, 0 above the horizon), the
     hypothesis distances (m ahead of the camera), the cells' lateral centres (m, from the
     path), the path's curvature (1/m), the camera's position (vehicle frame, m) and its
@@ -155,8 +158,8 @@ class Obstacle:
 
 @dataclass(frozen=True)
 class StandingState:
-    """evidence: (bins, CELLS + 2 SIDE_CELLS) summed log-likelihood ratios on the distance grid ``ranges``
-    (m ahead of the camera, this frame's); obstacle: what stands in the path, if anything;
+    """evidence: (bins, CELLS + 2 SIDE_CELLS) summed log-likelihood ratios on the distance grid
+    ``ranges`` (m ahead of the camera, this frame's); obstacle: what stands in the path, if anything;
     motions: the camera's motion (R, t_m) into each of the last frames, oldest first (None
     where the speed was unknown); driven_m: the distance driven since the start (m)."""
 
@@ -286,8 +289,8 @@ def hypothesis_evidence(p: CorridorProbe, flow: PointFlow | None, mover_p: Float
     """This frame's evidence (bins, cells), nats: for each hypothesis (an upright surface at
     a distance, in a cell), the summed log-likelihood ratio against the road of the points
     whose ray meets that surface between ``SURFACE_M`` above the road, each point's residuals
-    truncated at ``RESIDUAL_CLIP`` std (no single point decides). Points not measured or moving independently (``mover_p``: p(x) at the
-    points) say nothing.
+    truncated at ``RESIDUAL_CLIP`` std (no single point decides). Points not measured or moving
+    independently (``mover_p``: p(x) at the points, or 1 on a mover) say nothing.
 
     The flow's error is measured on the frame itself (:func:`flow_error`), plus
     ``RELATIVE_ERROR`` of the road's flow at the point."""

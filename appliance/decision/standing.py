@@ -129,7 +129,8 @@ class Obstacle:
     """Something standing in the path: its public id, its depth ahead of the camera (m), the
     vehicle-frame lateral extent it was seen over (y0, y1 m, at that depth), its evidence
     (nats), when it was first and last seen (s), whether it continues the roadside
-    (:func:`joins_roadside`), and its recent depths against the distance the car drove
+    (:func:`joins_roadside`; once seen to, for as long as it is tracked: what joins the parked
+    row in one frame does not stand free of it in the next), and its recent depths against the distance the car drove
     (``history``: (driven m, depth m), oldest first, at most ``HISTORY_S`` back)."""
 
     id: int
@@ -494,7 +495,8 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
                         if h[0] >= driven - HISTORY_S * max(speed, 0.1))
         obstacle = Obstacle(id=ident, depth_m=depth, lateral_m=lateral,
                             evidence=float(evidence[k, c0:c1 + 1].max()), since=since, seen=t,
-                            roadside=side, history=history)
+                            roadside=side or (obstacle is not None and obstacle.roadside),
+                            history=history)
     motions = (*state.motions, motion)[-MOTIONS:]
     return StandingState(evidence=evidence, obstacle=obstacle, motions=motions,
                          driven_m=driven), next_id

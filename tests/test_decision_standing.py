@@ -188,6 +188,39 @@ def test_a_wall_receding_from_the_kerb_across_the_path_is_the_roadside() -> None
     assert not joins_roadside(E, D, face[1], face[2], face[3], 16.0)
 
 
+def test_the_roadside_is_decided_by_the_majority_of_frames_and_then_kept(
+        default_config: Config) -> None:
+    """A face that joins the roadside in one early frame (its edge against the background)
+    stands free; one that joins it in most frames is the roadside, and stays it."""
+    cfg = default_config
+    D = ranges(cfg.obstacle)
+    k = int(np.argmin(np.abs(D - 20.0)))
+
+    def scene(joined: bool) -> np.ndarray:
+        E = np.full((len(D), CELLS + 2 * SIDE_CELLS), -5.0)
+        E[k, SIDE_CELLS] = 40.0                   # the corridor's right edge, at 20 m
+        if joined:
+            E[k - 2, SIDE_CELLS - 1] = 40.0       # beside it, outside, nearer
+        return E
+
+    def run(joined: list[bool]) -> list[bool]:
+        state, seen = init_standing(cfg.obstacle), []
+        for i, j in enumerate(joined):
+            state = dataclasses.replace(state, evidence=scene(j))
+            state, _ = standing_step(state, None, None, np.zeros(0), i * DT, DT, SPEED, None,
+                                     CAM, cfg.mount, cfg.warning.corridor_margin_m, 1,
+                                     cfg.obstacle)
+            assert state.obstacle is not None
+            seen.append(state.obstacle.roadside)
+        return seen
+
+    undecided = math.ceil(2.0 / (SPEED * DT))    # frames before 2 m of driving
+    once = run([True] + [False] * 20)
+    assert not any(once)
+    mostly = run([True, False] + [True] * 10 + [False] * 10)
+    assert not any(mostly[:undecided]) and all(mostly[12:])
+
+
 def test_the_rotation_left_over_is_measured_across_the_static_direction() -> None:
     rng = np.random.default_rng(3)
     angle = rng.uniform(0.3, 2.8, 200)           # static directions below the epipole
@@ -204,7 +237,7 @@ def test_probes_in_one_window_share_what_it_measures() -> None:
     assert window_share(uv, 9) == pytest.approx([0.5, 0.5, 1.0])
 
 
-STATIC = ((0.0, 28.0), (1.5, 26.5), (3.0, 25.0))   # (driven, depth): it stands
+STATIC = ((0.0, 28.0, False), (1.5, 26.5, False), (3.0, 25.0, False))  # it stands
 
 
 def frame(cfg: Config, speed: float = SPEED, accel: float = 0.0) -> FrameContext:
@@ -234,7 +267,8 @@ def test_an_obstacle_in_the_lane_warns_by_the_distance_driven(default_config: Co
     brief = obstacle_threat(dataclasses.replace(ob, history=STATIC[-2:]), frame(cfg),
                             cfg.warning, 16.0)
     assert indication(brief, 2.0, cfg.warning) == "standing: not yet seen coming nearer"
-    ahead = dataclasses.replace(ob, history=((0.0, 25.2), (1.5, 25.0), (3.0, 25.1)))
+    ahead = dataclasses.replace(ob, history=((0.0, 25.2, False), (1.5, 25.0, False),
+                                             (3.0, 25.1, False)))
     assert ahead.closing == pytest.approx(0.03, abs=0.05)
     assert "nearer per metre driven" in indication(
         obstacle_threat(ahead, frame(cfg), cfg.warning, 16.0), 2.0, cfg.warning)

@@ -128,10 +128,13 @@ class CorridorProbe:
 class Obstacle:
     """Something standing in the path: its public id, its depth ahead of the camera (m), the
     vehicle-frame lateral extent it was seen over (y0, y1 m, at that depth), its evidence
-    (nats), when it was first and last seen (s), whether it continues the roadside
-    (:func:`joins_roadside`; once seen to, for as long as it is tracked: what joins the parked
-    row in one frame does not stand free of it in the next), and its recent depths against the distance the car drove
-    (``history``: (driven m, depth m), oldest first, at most ``HISTORY_S`` back)."""
+    (nats), when it was first and last seen (s), whether it continues the roadside, and its
+    recent depths against the distance the car drove, each with whether that frame's face
+    joined the roadside (``history``: (driven m, depth m, joined), oldest first, at most
+    ``HISTORY_S`` back). ``roadside`` is decided once it has been seen over ``MIN_HISTORY_M``
+    of driving, by the majority of those frames (:func:`joins_roadside` flickers where an
+    object's edge meets the background), and kept for as long as it is tracked: what joins the
+    parked row does not stand free of it a moment later."""
 
     id: int
     depth_m: float
@@ -140,7 +143,7 @@ class Obstacle:
     since: float
     seen: float
     roadside: bool = False
-    history: tuple[tuple[float, float], ...] = ()
+    history: tuple[tuple[float, float, bool], ...] = ()
 
     @property
     def closing(self) -> float | None:
@@ -491,12 +494,14 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
         history = () if obstacle is None else obstacle.history
         if obstacle is None:
             next_id += 1
-        history = tuple(h for h in (*history, (driven, depth))
+        history = tuple(h for h in (*history, (driven, depth, side))
                         if h[0] >= driven - HISTORY_S * max(speed, 0.1))
+        roadside = obstacle is not None and obstacle.roadside
+        if history[-1][0] - history[0][0] >= MIN_HISTORY_M:
+            roadside = roadside or 2 * sum(h[2] for h in history) > len(history)
         obstacle = Obstacle(id=ident, depth_m=depth, lateral_m=lateral,
                             evidence=float(evidence[k, c0:c1 + 1].max()), since=since, seen=t,
-                            roadside=side or (obstacle is not None and obstacle.roadside),
-                            history=history)
+                            roadside=roadside, history=history)
     motions = (*state.motions, motion)[-MOTIONS:]
     return StandingState(evidence=evidence, obstacle=obstacle, motions=motions,
                          driven_m=driven), next_id

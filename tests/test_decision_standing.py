@@ -191,7 +191,8 @@ def test_a_wall_receding_from_the_kerb_across_the_path_is_the_roadside() -> None
 def test_the_roadside_is_decided_by_the_majority_of_frames_and_then_kept(
         default_config: Config) -> None:
     """A face that joins the roadside in one early frame (its edge against the background)
-    stands free; one that joins it in most frames is the roadside, and stays it."""
+    stands free (only that frame is not warned of); one that joins it in most frames is the
+    roadside, and stays it."""
     cfg = default_config
     D = ranges(cfg.obstacle)
     k = int(np.argmin(np.abs(D - 20.0)))
@@ -203,7 +204,7 @@ def test_the_roadside_is_decided_by_the_majority_of_frames_and_then_kept(
             E[k - 2, SIDE_CELLS - 1] = 40.0       # beside it, outside, nearer
         return E
 
-    def run(joined: list[bool]) -> list[bool]:
+    def run(joined: list[bool]) -> list[Obstacle]:
         state, seen = init_standing(cfg.obstacle), []
         for i, j in enumerate(joined):
             state = dataclasses.replace(state, evidence=scene(j))
@@ -211,14 +212,16 @@ def test_the_roadside_is_decided_by_the_majority_of_frames_and_then_kept(
                                      CAM, cfg.mount, cfg.warning.corridor_margin_m, 1,
                                      cfg.obstacle)
             assert state.obstacle is not None
-            seen.append(state.obstacle.roadside)
+            seen.append(state.obstacle)
         return seen
 
     undecided = math.ceil(2.0 / (SPEED * DT))    # frames before 2 m of driving
     once = run([True] + [False] * 20)
-    assert not any(once)
+    assert not any(ob.roadside for ob in once) and once[0].at_roadside
+    assert not any(ob.at_roadside for ob in once[1:])
     mostly = run([True, False] + [True] * 10 + [False] * 10)
-    assert not any(mostly[:undecided]) and all(mostly[12:])
+    assert not any(ob.roadside for ob in mostly[:undecided])
+    assert all(ob.roadside and ob.at_roadside for ob in mostly[12:])
 
 
 def test_the_rotation_left_over_is_measured_across_the_static_direction() -> None:

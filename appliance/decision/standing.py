@@ -128,13 +128,14 @@ class CorridorProbe:
 class Obstacle:
     """Something standing in the path: its public id, its depth ahead of the camera (m), the
     vehicle-frame lateral extent it was seen over (y0, y1 m, at that depth), its evidence
-    (nats), when it was first and last seen (s), whether it continues the roadside, and its
-    recent depths against the distance the car drove, each with whether that frame's face
+    (nats), when it was first and last seen (s), whether it was found to continue the
+    roadside, and its recent depths against the distance the car drove, each with whether that frame's face
     joined the roadside (``history``: (driven m, depth m, joined), oldest first, at most
     ``HISTORY_S`` back). ``roadside`` is decided once it has been seen over ``MIN_HISTORY_M``
     of driving, by the majority of those frames (:func:`joins_roadside` flickers where an
     object's edge meets the background), and kept for as long as it is tracked: what joins the
-    parked row does not stand free of it a moment later."""
+    parked row does not stand free of it a moment later. Until then, a frame whose face joins
+    the roadside is not warned of (``at_roadside``)."""
 
     id: int
     depth_m: float
@@ -144,6 +145,11 @@ class Obstacle:
     seen: float
     roadside: bool = False
     history: tuple[tuple[float, float, bool], ...] = ()
+
+    @property
+    def at_roadside(self) -> bool:
+        """Whether it continues the roadside: found to, or this frame's face joins it."""
+        return self.roadside or bool(self.history and self.history[-1][2])
 
     @property
     def closing(self) -> float | None:
@@ -561,5 +567,5 @@ def obstacle_threat(ob: Obstacle, f: FrameContext, cfg: WarningConfig,
     return TrackThreat(report=report, on_course=base.ttc is not None,
                        on_course_wide=wide.ttc is not None,
                        miss_m=None if base.ttc is not None else base.closest, moving=False,
-                       speed_m_s=0.0, standing=True, roadside=ob.roadside, closing=ob.closing,
+                       speed_m_s=0.0, standing=True, roadside=ob.at_roadside, closing=ob.closing,
                        ego_known=f.ego_known)

@@ -102,13 +102,13 @@ def compose(motions: tuple[Motion | None, ...], now: Motion, frames: int) -> tup
 class CorridorProbe:
     """Pixels (M, 2) of the current frame probing the hypotheses, and what reading them needs:
     where in the frame ``frames_back`` frames ago to start the search at each pixel (where a
-    road point seen there was), each pixel's share of the flow it measures (1 over the number
-    of probes whose Lucas-Kanade windows overlap its own: those measure the same pixels, and
-    their errors with them), its ray in the vehicle frame per unit camera depth (M, 3), the inverse depth
-    (previous frame, 1/m) of the road seen there (``w_road``, 0 above the horizon), the
-    hypothesis distances (m ahead of the camera), the cells' lateral centres (m, from the
-    path), the path's curvature (1/m), the camera's position (vehicle frame, m) and its
-    motion over those frames (R (3, 3), t_m (3,) m, ``X_cur = R X_then + t``)."""
+    road point seen there was), each pixel's share of the flow it measures (1 over the number of
+    probes whose Lucas-Kanade windows overlap its own: those measure the same pixels, and their
+    errors with them), its ray in the vehicle frame per unit camera depth (M, 3), the inverse
+    depth (previous frame, 1/m) of the road seen there (``w_road``, 0 above the horizon), the
+    hypothesis distances (m ahead of the camera), the cells' lateral centres (m, from the path),
+    the path's curvature (1/m), the camera's position (vehicle frame, m) and its motion over
+    those frames (R (3, 3), t_m (3,) m, ``X_cur = R X_then + t``)."""
 
     points: FloatArray
     guess: FloatArray
@@ -128,14 +128,14 @@ class CorridorProbe:
 class Obstacle:
     """Something standing in the path: its public id, its depth ahead of the camera (m), the
     vehicle-frame lateral extent it was seen over (y0, y1 m, at that depth), its evidence
-    (nats), when it was first and last seen (s), whether it was found to continue the
-    roadside, and its recent depths against the distance the car drove, each with whether that frame's face
-    joined the roadside (``history``: (driven m, depth m, joined), oldest first, at most
-    ``HISTORY_S`` back). ``roadside`` is decided once it has been seen over ``MIN_HISTORY_M``
-    of driving, by the majority of those frames (:func:`joins_roadside` flickers where an
-    object's edge meets the background), and kept for as long as it is tracked: what joins the
-    parked row does not stand free of it a moment later. Until then, a frame whose face joins
-    the roadside is not warned of (``at_roadside``)."""
+    (nats), when it was first and last seen (s), whether it was found to continue the roadside,
+    and its recent depths against the distance the car drove, each with whether that frame's
+    face joined the roadside (``history``: (driven m, depth m, joined), oldest first, at most
+    ``HISTORY_S`` back). ``roadside`` is decided once it has been seen over ``MIN_HISTORY_M`` of
+    driving, by the majority of those frames (:func:`joins_roadside` flickers where an object's
+    edge meets the background), and kept for as long as it is tracked: what joins the parked row
+    does not stand free of it a moment later. Until then, a frame whose face joins the roadside
+    is not warned of (``at_roadside``)."""
 
     id: int
     depth_m: float
@@ -169,8 +169,8 @@ class Obstacle:
 @dataclass(frozen=True)
 class StandingState:
     """evidence: (bins, CELLS + 2 SIDE_CELLS) summed log-likelihood ratios on the distance grid
-    ``ranges`` (m ahead of the camera, this frame's); obstacle: what stands in the path, if anything;
-    motions: the camera's motion (R, t_m) into each of the last frames, oldest first (None
+    ``ranges`` (m ahead of the camera, this frame's); obstacle: what stands in the path, if
+    anything; motions: the camera's motion (R, t_m) into each of the last frames, oldest first (None
     where the speed was unknown); driven_m: the distance driven since the start (m)."""
 
     evidence: FloatArray

@@ -215,13 +215,13 @@ def test_the_roadside_is_decided_by_the_majority_of_frames_and_then_kept(
             seen.append(state.obstacle)
         return seen
 
-    undecided = math.ceil(2.0 / (SPEED * DT))    # frames before 2 m of driving
+    undecided = math.ceil(max(0.5, 2.0 / SPEED) / DT)   # frames before 0.5 s and 2 m
     once = run([True] + [False] * 20)
     assert not any(ob.roadside for ob in once) and once[0].at_roadside
     assert not any(ob.at_roadside for ob in once[1:])
     mostly = run([True, False] + [True] * 10 + [False] * 10)
     assert not any(ob.roadside for ob in mostly[:undecided])
-    assert all(ob.roadside and ob.at_roadside for ob in mostly[12:])
+    assert all(ob.roadside and ob.at_roadside for ob in mostly[undecided:])
 
 
 def test_the_rotation_left_over_is_measured_across_the_static_direction() -> None:

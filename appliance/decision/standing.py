@@ -131,11 +131,11 @@ class Obstacle:
     (nats), when it was first and last seen (s), whether it was found to continue the roadside,
     and its recent depths against the distance the car drove, each with whether that frame's
     face joined the roadside (``history``: (driven m, depth m, joined), oldest first, at most
-    ``HISTORY_S`` back). ``roadside`` is decided once it has been seen over ``MIN_HISTORY_M`` of
-    driving, by the majority of those frames (:func:`joins_roadside` flickers where an object's
-    edge meets the background), and kept for as long as it is tracked: what joins the parked row
-    does not stand free of it a moment later. Until then, a frame whose face joins the roadside
-    is not warned of (``at_roadside``)."""
+    ``HISTORY_S`` back). ``roadside`` is decided once it has been seen for ``HISTORY_S`` and
+    over ``MIN_HISTORY_M`` of driving, by the majority of those frames (:func:`joins_roadside`
+    flickers where an object's edge meets the background), and kept for as long as it is
+    tracked: what joins the parked row does not stand free of it a moment later. Until then, a
+    frame whose face joins the roadside is not warned of (``at_roadside``)."""
 
     id: int
     depth_m: float
@@ -503,7 +503,7 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
         history = tuple(h for h in (*history, (driven, depth, side))
                         if h[0] >= driven - HISTORY_S * max(speed, 0.1))
         roadside = obstacle is not None and obstacle.roadside
-        if history[-1][0] - history[0][0] >= MIN_HISTORY_M:
+        if t - since >= HISTORY_S and history[-1][0] - history[0][0] >= MIN_HISTORY_M:
             roadside = roadside or 2 * sum(h[2] for h in history) > len(history)
         obstacle = Obstacle(id=ident, depth_m=depth, lateral_m=lateral,
                             evidence=float(evidence[k, c0:c1 + 1].max()), since=since, seen=t,

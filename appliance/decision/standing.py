@@ -134,8 +134,9 @@ class Obstacle:
     ``HISTORY_S`` back). ``roadside`` is decided once it has been seen for ``HISTORY_S`` and
     over ``MIN_HISTORY_M`` of driving, by the majority of those frames (:func:`joins_roadside`
     flickers where an object's edge meets the background), and kept for as long as it is
-    tracked: what joins the parked row does not stand free of it a moment later. Until then, a
-    frame whose face joins the roadside is not warned of (``at_roadside``)."""
+    tracked: what joins the parked row does not stand free of it a moment later. Until then, and
+    for ``HISTORY_S`` after a frame whose face joins the roadside, it is not warned of
+    (``at_roadside``)."""
 
     id: int
     depth_m: float
@@ -148,8 +149,9 @@ class Obstacle:
 
     @property
     def at_roadside(self) -> bool:
-        """Whether it continues the roadside: found to, or this frame's face joins it."""
-        return self.roadside or bool(self.history and self.history[-1][2])
+        """Whether it continues the roadside: found to, or a face of it joined it over the
+        last ``HISTORY_S``."""
+        return self.roadside or any(h[2] for h in self.history)
 
     @property
     def closing(self) -> float | None:

@@ -59,7 +59,8 @@ class TrackThreat:
     (:func:`warnings.pool_covered`), else None; standing: an obstacle standing in the path
     (``standing.py``), static by construction, its evidence its parallax; roadside: such an
     obstacle continues the roadside (the outside of a bend the path is predicted straight into);
-    closing: how much nearer such an obstacle comes per metre driven (None: not yet known)."""
+    closing: how much nearer such an obstacle comes per metre driven (None: not yet known);
+    stopped: such an obstacle continues the track of a mover that came to a stop (handover.py)."""
 
     report: TrackReport
     on_course: bool
@@ -74,6 +75,7 @@ class TrackThreat:
     standing: bool = False
     roadside: bool = False
     closing: float | None = None
+    stopped: bool = False
 
     @property
     def ttc(self) -> float | None:

@@ -38,8 +38,9 @@ from appliance.decision.frame import (
     speed_slope,
 )
 from appliance.decision.ground_state import camera_pose, update_body_pitch
+from appliance.decision.handover import STOPPING_M_S, continued, mover_height, one_threat
 from appliance.decision.hidden import hidden_probes, hidden_threats
-from appliance.decision.lost_tracks import coast_lost, reacquire
+from appliance.decision.lost_tracks import coast_lost, moved_within, reacquire
 from appliance.decision.occlusion import CoastProbe
 from appliance.decision.probability_map import empty_map, spatio_temporal_filter
 from appliance.decision.standing import (
@@ -153,8 +154,6 @@ def decide(state: DecisionState, obs: Observation, flows: Mapping[ProbeKey, Poin
             threats.append(assess(shown(tr, None if outline is None else outline.top),
                                   cues[tr.uid], f, cfg.warning))
     threats = pool_covered(threats)
-    lost, hidden = hidden_threats(lost, obs.probes, measured, f, cfg.hidden, cfg.warning)
-    threats.extend(hidden)
     corridor = obs.probes.get(OBSTACLE_PROBE)
     cp = corridor if isinstance(corridor, CorridorProbe) else None
     mover_p = np.zeros(0)
@@ -169,8 +168,31 @@ def decide(state: DecisionState, obs: Observation, flows: Mapping[ProbeKey, Poin
         frame_motion(f.ego, f.sensors, f.dt), f.camera, f.mount, cfg.warning.corridor_margin_m,
         obs.tracker.next_id, cfg.obstacle)
     ob = standing.obstacle
+    if ob is not None and ob.since == f.t:
+        # new: it continues the mover that came to a stop where it stands (handover.py)
+        curvature = f.yaw_rate / f.speed if f.speed > 0.1 else 0.0
+        movers = [(lt.id, lt.halted) for lt in lost if lt.halted is not None]
+        heights = {lt.id: mover_height(lt.cues) for lt in lost}
+        for tr in tracks:
+            g = cues[tr.uid].ground
+            if tr.confirmed and tr.id is not None and g is not None and g.speed < STOPPING_M_S \
+                    and moved_within(cues[tr.uid], f.t, cfg.hidden.keep_s):
+                movers.append((int(tr.id), g.position))
+                heights[int(tr.id)] = mover_height(cues[tr.uid])
+        ident = continued(ob, f.mount, curvature, movers)
+        if ident is not None:
+            top = heights.get(ident)
+            ob = replace(ob, id=ident, stopped=True, top_m=top if top is not None else ob.top_m)
+            standing = replace(standing, obstacle=ob)
+            next_id = obs.tracker.next_id
+    if ob is not None:
+        # its track, if it was lost, is continued by the obstacle
+        lost = tuple(lt for lt in lost if lt.id != ob.id)
+    lost, hidden = hidden_threats(lost, obs.probes, measured, f, cfg.hidden, cfg.warning)
+    threats.extend(hidden)
     if ob is not None and ob.seen == f.t:
         threats.append(obstacle_threat(ob, f, cfg.warning, cfg.obstacle.evidence_threshold))
+        threats = one_threat(threats, ob.id)
     threats.sort(key=lambda th: th.report.id)
     warning, events, warned, reasons = warning_step(
         state.warning, tuple(threats), f.t, obs.frame_index, cfg.warning, frame_dt=f.dt,

@@ -21,6 +21,7 @@ from appliance.decision.ground_state import (
     CameraPose,
     GroundContact,
     GroundModel,
+    ego_step,
     ground_in_camera,
     ground_predict,
     innovation_sigmas,
@@ -54,6 +55,8 @@ class LostTrack:
     seen_on_course: bool = False     # its head was seen keeping its bearing while hidden
     course_peak: float = 0.0         # the highest median count so far
     off_course: bool = False         # latched once its head, seen on course, was no longer
+    halted: FloatArray | None = None  # (2,) m, current vehicle frame: where it would stand had it
+                                      #   stopped when lost (its last position, moved with the ego)
 
     def covered(self) -> bool:
         """Whether something nearer hides it: the median of its last ``COVER_FRAMES``
@@ -105,6 +108,12 @@ def reacquire(lost: tuple[LostTrack, ...], contact: GroundContact) -> LostTrack 
     return best[1] if best is not None else None
 
 
+def moved_within(cues: TrackCues, t: float, window: float) -> bool:
+    """Whether a track has moved over ground (its motion cue) within ``window`` s before ``t``."""
+    motion = cues.get("motion")
+    return motion is not None and t - motion.t <= window
+
+
 def coast_lost(previous: TrackerState, previous_cues: dict[int, TrackCues],
                previous_lost: tuple[LostTrack, ...], tracker: TrackerState, t: float, dt: float,
                sensors: SensorSample, model: GroundModel, cfg: HiddenConfig
@@ -115,17 +124,14 @@ def coast_lost(previous: TrackerState, previous_cues: dict[int, TrackCues],
     if cfg.keep_s <= 0.0:
         return ()
     alive = {tr.uid for tr in tracker.tracks}
-    window = cfg.keep_s
-
-    def moved_within(cues: TrackCues) -> bool:
-        motion = cues.get("motion")
-        return motion is not None and t - motion.t <= window
-
     dropped = tuple(LostTrack(id=int(tr.id), cues=previous_cues[tr.uid], track=tr)
                     for tr in previous.tracks
                     if tr.id is not None and tr.uid not in alive and tr.uid in previous_cues
                     and previous_cues[tr.uid].ground is not None
-                    and moved_within(previous_cues[tr.uid]))
+                    and moved_within(previous_cues[tr.uid], t, cfg.keep_s))
+    # where each would stand had it stopped when it was lost: its last position
+    dropped = tuple(replace(lt, halted=lt.cues.ground.position.copy())  # type: ignore[union-attr]
+                    for lt in dropped)
     # no fading memory while coasting: it would inflate the covariance and widen the gate
     coasting = replace(model, memory_s=0.0)
     out: list[LostTrack] = []
@@ -134,8 +140,20 @@ def coast_lost(previous: TrackerState, previous_cues: dict[int, TrackCues],
         assert g is not None
         g = ground_predict(g, dt, sensors, coasting, steady=True)
         if t - g.t_update <= cfg.keep_s:
-            out.append(replace(lt, cues=TrackCues(ground=g, states=lt.cues.states)))
+            out.append(replace(lt, cues=TrackCues(ground=g, states=lt.cues.states),
+                               halted=halted_step(lt.halted, dt, sensors)))
     return tuple(out)
+
+
+def halted_step(p: FloatArray | None, dt: float, sensors: SensorSample) -> FloatArray | None:
+    """A static point's position (2,) m in the vehicle frame after the ego moved ``dt`` s
+    (CAN speed and yaw rate): ``p' = Rt (p - d)`` (``ground_predict`` at zero velocity)."""
+    if p is None or dt <= 0.0:
+        return p
+    speed = sensors.speed_m_s if np.isfinite(sensors.speed_m_s) else 0.0
+    yaw = sensors.yaw_rate_rad_s if np.isfinite(sensors.yaw_rate_rad_s) else 0.0
+    Rt, d = ego_step(speed, yaw, dt)
+    return np.asarray(Rt @ (p - d), dtype=np.float64)
 
 
 def coasted_foot(lt: LostTrack, pose: CameraPose) -> FloatArray | None:

@@ -79,6 +79,7 @@ MOTIONS = 6                # frame motions kept: a baseline spans at most this +
 HISTORY_S = 0.5            # s of driving (at the current speed) an obstacle's closing is fit over
 MIN_HISTORY_M = 2.0        # m, an obstacle's closing is known once seen over this much driving
 LOST_S = 0.3               # s, an obstacle not seen this long is gone
+TOP_M = 1.0                # m, the top of an obstacle's reported box (the probes reach HEIGHTS_M)
 
 
 Motion = tuple[FloatArray, FloatArray]   # (R (3, 3), t_m (3,) m): X_cur = R X_prev + t
@@ -136,7 +137,9 @@ class Obstacle:
     flickers where an object's edge meets the background), and kept for as long as it is
     tracked: what joins the parked row does not stand free of it a moment later. Until then, and
     for ``HISTORY_S`` after a frame whose face joins the roadside, it is not warned of
-    (``at_roadside``)."""
+    (``at_roadside``). ``stopped``: it continues the track of a mover that came to a stop there,
+    under its id (handover.py); ``top_m``: how high above the road its reported box reaches
+    (the probes reach ``HEIGHTS_M``; a stopped mover's own height, where its track knew it)."""
 
     id: int
     depth_m: float
@@ -146,6 +149,8 @@ class Obstacle:
     seen: float
     roadside: bool = False
     history: tuple[tuple[float, float, bool], ...] = ()
+    stopped: bool = False
+    top_m: float = TOP_M
 
     @property
     def at_roadside(self) -> bool:
@@ -499,6 +504,8 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
         lateral = (float(offsets[c0] - half), float(offsets[c1] + half))
         side = joins_roadside(evidence, D, depth, c0, c1, cfg.evidence_threshold)
         ident, since = (next_id, t) if obstacle is None else (obstacle.id, obstacle.since)
+        stopped = obstacle is not None and obstacle.stopped
+        top = obstacle.top_m if obstacle is not None else TOP_M
         history = () if obstacle is None else obstacle.history
         if obstacle is None:
             next_id += 1
@@ -509,7 +516,8 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
             roadside = roadside or 2 * sum(h[2] for h in history) > len(history)
         obstacle = Obstacle(id=ident, depth_m=depth, lateral_m=lateral,
                             evidence=float(evidence[k, c0:c1 + 1].max()), since=since, seen=t,
-                            roadside=roadside, history=history)
+                            roadside=roadside, history=history, stopped=stopped,
+                            top_m=top)
     motions = (*state.motions, motion)[-MOTIONS:]
     return StandingState(evidence=evidence, obstacle=obstacle, motions=motions,
                          driven_m=driven), next_id
@@ -518,10 +526,10 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
 def obstacle_box(ob: Obstacle, pose: CameraPose, camera: PinholeCamera, mount: MountConfig,
                  curvature: float) -> tuple[float, float, float, float]:
     """The image box (u0, v0, u1, v1) px of the part of ``ob`` the cue measured: its lateral
-    extent, from the road up to ``TOP_M``, clipped to the image."""
+    extent, from the road up to ``ob.top_m``, clipped to the image."""
     x = mount.x_m + ob.depth_m
     yc = float(path_y(np.array([x]), curvature)[0])
-    corners = np.array([[x, yc + y, z] for y in ob.lateral_m for z in (0.0, TOP_M)])
+    corners = np.array([[x, yc + y, z] for y in ob.lateral_m for z in (0.0, ob.top_m)])
     cam = (corners - np.asarray(pose.position)) @ pose.rotation()
     uv = camera.project(cam)
     if not np.all(np.isfinite(uv)):
@@ -530,8 +538,6 @@ def obstacle_box(ob: Obstacle, pose: CameraPose, camera: PinholeCamera, mount: M
     u1, v1 = np.clip(uv.max(axis=0), 0.0, [camera.width - 1.0, camera.height - 1.0])
     return (round(float(u0), 1), round(float(v0), 1), round(float(u1), 1), round(float(v1), 1))
 
-
-TOP_M = 1.0   # m, the top of an obstacle's reported box (the probes reach HEIGHTS_M)
 
 
 def obstacle_threat(ob: Obstacle, f: FrameContext, cfg: WarningConfig,
@@ -570,4 +576,4 @@ def obstacle_threat(ob: Obstacle, f: FrameContext, cfg: WarningConfig,
                        on_course_wide=wide.ttc is not None,
                        miss_m=None if base.ttc is not None else base.closest, moving=False,
                        speed_m_s=0.0, standing=True, roadside=ob.at_roadside, closing=ob.closing,
-                       ego_known=f.ego_known)
+                       stopped=ob.stopped, ego_known=f.ego_known)

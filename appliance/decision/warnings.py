@@ -98,9 +98,9 @@ def indication(th: TrackThreat, threshold: float, cfg: WarningConfig) -> str | N
         return "not moving over ground"
     if th.standing and th.roadside:
         return "stands at the roadside, which comes nearer beside it (a bend)"
-    if th.standing and th.closing is None:
+    if th.standing and th.closing is None and not th.stopped:
         return "standing: not yet seen coming nearer"
-    if th.standing and th.closing < MIN_CLOSING:
+    if th.standing and th.closing is not None and th.closing < MIN_CLOSING:
         return f"standing: comes {th.closing:.2f} m nearer per metre driven"
     if th.height_m is not None and th.height_m < cfg.min_height_m:
         return f"box {th.height_m:.2f} m tall, below {cfg.min_height_m:.2f} m"

@@ -374,6 +374,43 @@ def pedestrian_standing_in_lane(v: Vehicle) -> Plan:
                 movers=(MoverPlan("pedestrian", ped, "pedestrian standing in the lane"),))
 
 
+def lead_car_stops_in_lane(v: Vehicle) -> Plan:
+    """Ego and lead car at 40 km/h, 25 m apart in the same lane; the lead brakes at 5 m/s^2
+    (0.5 g) to a standstill and stands; the ego does not brake and hits it about 1.1 s after it
+    stopped. One object, moving and then standing: one track and one threat throughout."""
+    v0, decel, gap, t_brake = 40 * KMH, 5.0, 25.0, 3.0
+    x0 = v.front + gap + SIZES["car"][0] / 2   # the lead's centre at tau = 0
+    t_stop = v0 / decel
+    taus = np.concatenate([[-30.0, 0.0], t_brake + np.arange(0.0, t_stop, 0.1),
+                           [t_brake + t_stop, t_brake + t_stop + 60.0]])
+    t = np.clip(taus - t_brake, 0.0, t_stop)
+    x = x0 + v0 * np.minimum(taus, t_brake) + v0 * t - 0.5 * decel * t**2
+    lead = Trajectory(tuple((float(tt), float(xx), 0.0) for tt, xx in zip(taus, x)))
+    return Plan(EgoPlan(speed=((0.0, v0),)), duration_s=8.0,
+                movers=(MoverPlan("car", lead, "lead car braking to a stop at 5 m/s^2"),))
+
+
+def pedestrian_stops_in_lane(v: Vehicle) -> Plan:
+    """Ego 30 km/h; a pedestrian crosses from the right and stops in the middle of the ego lane
+    about 2.8 s before the car reaches them, and stands; the ego does not brake. One object,
+    moving and then standing: one track and one threat throughout."""
+    ego_speed, T, standing = 30 * KMH, 7.0, 3.0
+    walk = crossing_course(
+        ego_speed=ego_speed,
+        # the lane's centre ``standing`` s before the bumper reaches them at T
+        aim_x=v.front + ego_speed * standing + SIZES["pedestrian"][0] / 2,
+        mover_speed=WALK,
+        from_right=True,
+        aim_y=0.0,
+        aim_tau=T - standing,
+        start_y=-6.4,
+        end_y=6.0,
+    )
+    ped = MoverPlan("pedestrian", stand_then_cross(stop_at(walk, stop_y=0.0), -60.0),
+                    "pedestrian who stops in the lane")
+    return Plan(EgoPlan(speed=((0.0, ego_speed),)), duration_s=8.0, movers=(ped,))
+
+
 def lead_car_stops_ego_brakes(v: Vehicle) -> Plan:
     """No collision: ego and lead car at 40 km/h, 15 m apart in the same lane; the lead brakes
     at 3 m/s^2 (0.3 g) to a standstill and the ego, 0.5 s later, brakes harder (4 m/s^2) and
@@ -434,6 +471,16 @@ SCENARIOS: dict[str, Scenario] = {
             pedestrian_standing_in_lane,
             True,
             "collision: pedestrian standing still in the lane, ego 35 km/h does not brake",
+        ),
+        _scenario(
+            lead_car_stops_in_lane,
+            True,
+            "collision: lead car 25 m ahead brakes at 5 m/s^2 to a stop, 40 km/h, ego does not",
+        ),
+        _scenario(
+            pedestrian_stops_in_lane,
+            True,
+            "collision: pedestrian crosses and stops in the lane, 30 km/h, ego does not brake",
         ),
         _scenario(
             pedestrian_stops_at_kerb,

@@ -48,6 +48,9 @@ GOLDEN = {
     # the outside of a left bend, parked cars: the path predicted from the yaw rate runs into
     # them; they continue the roadside and stay ahead as the car turns: nothing is warned
     "bend_static-3": ("bend_static", 3, 11.0),
+    # a pedestrian crossing who stops in the middle of the lane: the walking track fades, the
+    # standing obstacle continues it under the same id and is warned (decision/handover.py)
+    "pedestrian_stops_in_lane-0": ("pedestrian_stops_in_lane", 0, 8.0),
 }
 # Tolerances of the comparison: the same warning changes in the same order, each within
 # FRAME_TOLERANCE frames and TTC_TOLERANCE_S of the reference. They absorb floating-point

@@ -17,6 +17,8 @@ COLUMNS = """\
 Columns: **runs** scored / made; **coll** a collision scenario (in a pooled row: collision
 runs / runs); **lead min/med** lead time of the first level-2 warning on the mover before
 contact, min / median over the runs (`MISS n`: n runs without one; target >= 1.5 s);
+**lead1 min/med** the same for the first warning of either level (no target; for a standing or
+braking lead car the first alert should come >= 2.4 s before contact);
 **falseL2** false level-2 warnings (target 0); **L1/min max** level-1 onsets per minute,
 worst no-collision run (target <= 1); **detect max** frames from a mover being >= 15 px
 tall, visible and moving over the ground to its first matching track, worst run (`MISS`:
@@ -29,7 +31,7 @@ KITTI_NOTE = """\
 Scored by the world's own `score.py` (`../shared/worlds/kitti-street/README.md`), its
 figures in these columns: **L1/min** counts every change to level 1 (a level 2 easing to 1
 too); **distErr** is the distance definition that fits the run best (front bumper, camera
-or rear axle); **ghosts/min** is not computed (`-`); **targets** are `score.py`'s
+or rear axle); **lead1** and **ghosts/min** are not computed (`-`); **targets** are `score.py`'s
 (lead >= 1.5 s, no false level 2, detection <= 10 frames, TTC error <= 20 %, rotation
 <= 0.05 deg; `rotation` when that failed)."""
 

@@ -106,6 +106,9 @@ def test_collision_run_lead_time_false_warnings_and_errors(tmp_path: Path,
     r = evaluate_run(rec, run)
     assert r["collision"] is True and r["colliding_object"] == 1
     assert r["lead_time_s"] == pytest.approx(2.5 - 41 / FPS, abs=1e-3)
+    # the first caution on the mover (frame 15) came before its level 2; the level 2 at
+    # frame 32 on the static scene is not on it
+    assert r["caution_lead_s"] == pytest.approx(2.5 - 15 / FPS, abs=1e-3)
     assert r["false_level2"] == 1
     assert r["false_level2_t"] == [pytest.approx(T0 + 32 / FPS, abs=1e-3)]
     assert r["level2_onsets"] == 2
@@ -168,6 +171,17 @@ def test_missed_warning_has_no_lead_time(tmp_path: Path, default_config: Config)
     run = write_run(tmp_path / "run", [], [warning(85, 2, 1, mover_box(85))])  # after contact
     r = evaluate_run(rec, run, plot=False)
     assert r["lead_time_s"] is None and r["targets"]["lead_time"] is False
+    assert r["caution_lead_s"] is None
+
+
+def test_a_caution_alone_gives_a_caution_lead_but_no_lead_time(tmp_path: Path,
+                                                                default_config: Config) -> None:
+    rec = write_recording(tmp_path / "rec", default_config)
+    run = write_run(tmp_path / "run", [], [warning(30, 1, 1, mover_box(30)),
+                                           warning(60, 0, 1, None)])
+    r = evaluate_run(rec, run, plot=False)
+    assert r["caution_lead_s"] == pytest.approx(2.5 - 30 / FPS, abs=1e-3)
+    assert r["lead_time_s"] is None
 
 
 def test_cli_errors_are_one_line_exit_2(tmp_path: Path, default_config: Config,

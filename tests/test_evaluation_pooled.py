@@ -46,6 +46,17 @@ def test_one_row_per_scenario_over_its_seeds() -> None:
     assert rows["bend"]["targets"] == "FAIL no_false_level2,errors"
 
 
+def test_the_first_cautions_lead_is_pooled_only_where_every_run_has_it() -> None:
+    own = [dict(run("a", True, lead=1.2), caution_lead_s=2.6),
+           dict(run("a", True, lead=1.4), caution_lead_s=2.2),
+           dict(run("a", True, lead=1.9), caution_lead_s=None)]
+    assert pooled.pooled_row(own[:2])["lead1 min/med"] == "2.20/2.40"
+    assert pooled.pooled_row(own)["lead1 min/med"] == "MISS 1"
+    # another world's scorer has no first caution: the pooled row does not pretend it has
+    assert pooled.pooled_row(own[:2] + [run("k", True, lead=2.0)])["lead1 min/med"] == "-"
+    assert pooled.pooled_row([run("b", False)])["lead1 min/med"] == "-"
+
+
 def test_a_pooled_row_mixes_collision_and_calm_runs() -> None:
     results = [run("a", True, lead=1.8), run("b", False, l1_per_min=1.0),
                run("c", False, ghosts=None)]

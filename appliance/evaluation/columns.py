@@ -35,6 +35,10 @@ COLUMNS = (
     Column("lead_time_s", "lead(s)", ".2f",
            "collision drives: time from the first level-2 warning on the colliding object to "
            "the collision; - when none came before it (target >= 1.5 s)"),
+    Column("caution_lead_s", "lead1(s)", ".2f",
+           "collision drives: the same for the first warning of either level (level 1 or 2) "
+           "on the colliding object; - when none came before it (no target; a standing or "
+           "braking lead car's first alert should come >= 2.4 s before contact)"),
     Column("false_level2", "falseL2", "",
            "false level-2 warnings: every level-2 onset of a drive without collision; in a "
            "collision drive, those on no moving object (target 0)"),

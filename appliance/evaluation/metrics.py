@@ -30,6 +30,9 @@ Definitions (what a validation engineer expects):
   it within 15 frames (0.5 s at 30 fps) of the warning, or within 15 frames before an
   occlusion (the object less than half visible) that lasts until the warning: a hidden
   object's coasted track cannot match it.
+* **Caution lead time:** the same for the first event at level 1 or 2 on the colliding
+  object (for a standing or braking lead car the first alert is judged: NHTSA's FCW
+  confirmation tests want it at a TTC of at least 2.1-2.4 s).
 * **False level-2 warnings:** level-2 onsets (a level-2 event after a lower
   level; a change of the track behind a continuing level 2 is not a new warning
   for the driver) in a no-collision scenario, or, in a collision scenario, not on
@@ -330,13 +333,19 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
         false_l2 = [w for w in l2_onsets if not any(on_object(w, o) for o in scored)]
     else:
         false_l2 = list(l2_onsets)
-    first_l2_t = None
-    if colliding is not None and ct is not None:
-        # every level-2 event counts here, also a switch of a continuing level 2 to its track
+    def first_on_colliding(level: int) -> float | None:
+        # every event at ``level`` or above counts here, also a switch of a continuing
+        # warning to its track
+        if colliding is None or ct is None:
+            return None
         hits = [w.t for w in sorted(warnings, key=lambda w: w.t)
-                if w.level == 2 and w.t <= ct + 1e-6 and on_object(w, colliding)]
-        first_l2_t = hits[0] if hits else None
+                if w.level >= level and w.t <= ct + 1e-6 and on_object(w, colliding)]
+        return hits[0] if hits else None
+
+    first_l2_t = first_on_colliding(2)
+    first_l1_t = first_on_colliding(1)
     lead = None if first_l2_t is None or ct is None else ct - first_l2_t
+    caution_lead = None if first_l1_t is None or ct is None else ct - first_l1_t
 
     ttc_err, dist_err, ttc_cov, dist_cov = _last_window_errors(
         colliding, ct, match, owner, by_frame, frame_times, mount) if colliding is not None \
@@ -362,6 +371,8 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
         "colliding_object": None if colliding is None else colliding.id,
         "first_level2_t": first_l2_t,
         "lead_time_s": None if lead is None else round(lead, 3),
+        "first_level1_t": first_l1_t,
+        "caution_lead_s": None if caution_lead is None else round(caution_lead, 3),
         "level2_onsets": len(l2_onsets),
         "false_level2": len(false_l2),
         "false_level2_t": [round(w.t, 3) for w in false_l2],

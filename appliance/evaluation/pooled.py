@@ -19,7 +19,7 @@ from typing import Any
 Result = dict[str, Any]
 
 COLUMNS = (
-    "runs", "coll", "lead min/med", "falseL2", "L1/min max", "detect max", "TTCerr",
+    "runs", "coll", "lead min/med", "lead1 min/med", "falseL2", "L1/min max", "detect max", "TTCerr",
     "distErr", "ghosts/min", "targets",
 )
 
@@ -32,6 +32,14 @@ def _f(v: float | None, spec: str = ".2f") -> str:
     return "-" if v is None else format(v, spec)
 
 
+def _min_median(leads: list[float | None]) -> str:
+    """min/median of lead times, or ``MISS n`` when n of them are missing."""
+    known = [v for v in leads if v is not None]
+    if len(known) < len(leads):
+        return f"MISS {len(leads) - len(known)}"
+    return f"{_f(min(known))}/{_f(median(known))}"
+
+
 def _row(rs: list[Result], errors: list[Result]) -> dict[str, str]:
     """The table's columns over the runs ``rs`` of one group (``errors``: its failed runs)."""
     if not rs:
@@ -39,8 +47,6 @@ def _row(rs: list[Result], errors: list[Result]) -> dict[str, str]:
                 "targets": "ERROR " + errors[0]["error"]}
     coll = [r for r in rs if r["collision"]]
     calm = [r for r in rs if not r["collision"]]
-    leads = [r["lead_time_s"] for r in coll]
-    known = [v for v in leads if v is not None]
     delays = [r["worst_detection_delay_frames"] for r in rs if r["objects"]]
     failed = sorted({k for r in rs for k, ok in r["targets"].items() if ok is False})
     l1 = [r["level1_per_min"] for r in calm if r["level1_per_min"] is not None]
@@ -49,14 +55,15 @@ def _row(rs: list[Result], errors: list[Result]) -> dict[str, str]:
             if r["distance_rel_error_median"] is not None]
     ghosts = [r for r in rs if r.get("ghost_tracks") is not None]
     ghost_min = sum(r["duration_s"] for r in ghosts) / 60.0
-    lead_txt = "-"
-    if coll:
-        lead_txt = (f"{_f(min(known))}/{_f(median(known))}" if len(known) == len(leads)
-                    else f"MISS {len(leads) - len(known)}")
+    lead_txt = _min_median([r["lead_time_s"] for r in coll]) if coll else "-"
+    # another world's scorer may not know the first caution: then it is not pooled at all
+    has_caution = bool(coll) and all("caution_lead_s" in r for r in coll)
+    lead1_txt = _min_median([r["caution_lead_s"] for r in coll]) if has_caution else "-"
     return {
         "runs": f"{len(rs)}/{len(rs) + len(errors)}",
         "coll": "yes" if not calm else "no" if not coll else f"{len(coll)}/{len(rs)}",
         "lead min/med": lead_txt,
+        "lead1 min/med": lead1_txt,
         "falseL2": str(sum(r["false_level2"] for r in rs)),
         "L1/min max": _f(max(l1)) if l1 else "-",
         "detect max": "-" if not delays else ("MISS" if None in delays else str(max(delays))),

@@ -12,8 +12,8 @@ with ``score_all.py --json`` and maps each score to the columns of
 * ``L1/min``: score.py's ``level1_count`` (every change to level 1, a level 2 easing to 1
   included) per minute of recording;
 * ``distErr``: score.py's best-fitting distance definition of the run;
-* ghost tracks and the first caution's lead (``lead1``): score.py has neither (``-``); targets: score.py's own pass/fail
-  (lead >= 1.5 s, no false level 2, detection <= 10 frames, TTC error <= 20 %, rotation
+* ghost tracks and the first caution's lead (``lead1``): score.py has neither (``-``);
+  targets: score.py's own pass/fail (lead >= 1.5 s, no false level 2, detection <= 10 frames, TTC error <= 20 %, rotation
   <= 0.05 deg), named as ours where they match.
 """
 

@@ -333,17 +333,13 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
         false_l2 = [w for w in l2_onsets if not any(on_object(w, o) for o in scored)]
     else:
         false_l2 = list(l2_onsets)
-    def first_on_colliding(level: int) -> float | None:
-        # every event at ``level`` or above counts here, also a switch of a continuing
-        # warning to its track
-        if colliding is None or ct is None:
-            return None
-        hits = [w.t for w in sorted(warnings, key=lambda w: w.t)
-                if w.level >= level and w.t <= ct + 1e-6 and on_object(w, colliding)]
-        return hits[0] if hits else None
-
-    first_l2_t = first_on_colliding(2)
-    first_l1_t = first_on_colliding(1)
+    # every warning event on the colliding object up to contact, in time order; a switch of a
+    # continuing warning to its track counts too
+    on_colliding = [] if colliding is None or ct is None else [
+        w for w in sorted(warnings, key=lambda w: w.t)
+        if w.level >= 1 and w.t <= ct + 1e-6 and on_object(w, colliding)]
+    first_l2_t = next((w.t for w in on_colliding if w.level == 2), None)
+    first_l1_t = on_colliding[0].t if on_colliding else None
     lead = None if first_l2_t is None or ct is None else ct - first_l2_t
     caution_lead = None if first_l1_t is None or ct is None else ct - first_l1_t
 

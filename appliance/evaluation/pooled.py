@@ -19,8 +19,8 @@ from typing import Any
 Result = dict[str, Any]
 
 COLUMNS = (
-    "runs", "coll", "lead min/med", "lead1 min/med", "falseL2", "L1/min max", "detect max", "TTCerr",
-    "distErr", "ghosts/min", "targets",
+    "runs", "coll", "lead min/med", "lead1 min/med", "falseL2", "L1/min max", "detect max",
+    "TTCerr", "distErr", "ghosts/min", "targets",
 )
 
 

@@ -18,9 +18,11 @@ from appliance.decision.frame import FrameContext
 from appliance.decision.ground_state import CameraPose
 from appliance.decision.standing import (
     CELLS,
+    RATES,
     SIDE_CELLS,
     CorridorProbe,
     Obstacle,
+    braking_ttc,
     cell_offsets,
     compose,
     corridor_probe,
@@ -139,7 +141,7 @@ def test_the_probe_spans_several_frames_and_starts_where_the_road_was(
 def test_a_flat_road_gives_no_evidence_of_anything_standing(default_config: Config) -> None:
     p = probe(default_config)
     z = scene_depth(default_config, p, None)
-    E = hypothesis_evidence(p, flows(p, z, 0.05), np.zeros(len(p.points)), CAM)
+    E = hypothesis_evidence(p, flows(p, z, 0.05), np.zeros(len(p.points)), CAM)[0]
     corridor = E[:, SIDE_CELLS:SIDE_CELLS + CELLS]
     assert corridor.max() < 2.0
     assert corridor.sum() < -50.0      # the road is what is seen
@@ -152,7 +154,7 @@ def test_a_wall_in_the_lane_is_found_at_its_distance(default_config: Config) -> 
     p = probe(cfg)
     for depth in (12.0, 25.0):
         z = scene_depth(cfg, p, (depth, -0.9, 0.9))
-        E = hypothesis_evidence(p, flows(p, z, 0.05), np.zeros(len(p.points)), CAM)
+        E = hypothesis_evidence(p, flows(p, z, 0.05), np.zeros(len(p.points)), CAM)[0]
         face = nearest_face(E, p.ranges, 5.0)
         assert face is not None
         _, found, c0, c1 = face
@@ -207,7 +209,9 @@ def test_the_roadside_is_decided_by_the_majority_of_frames_and_then_kept(
     def run(joined: list[bool]) -> list[Obstacle]:
         state, seen = init_standing(cfg.obstacle), []
         for i, j in enumerate(joined):
-            state = dataclasses.replace(state, evidence=scene(j))
+            layers = np.full((len(RATES), *scene(j).shape), -5.0)
+            layers[0] = scene(j)
+            state = dataclasses.replace(state, evidence=layers)
             state, _ = standing_step(state, None, None, np.zeros(0), i * DT, DT, SPEED, None,
                                      CAM, cfg.mount, cfg.warning.corridor_margin_m, 1,
                                      cfg.obstacle)
@@ -316,3 +320,75 @@ def test_evidence_accumulates_on_the_road_and_an_obstacle_keeps_its_id(
     assert all(abs(d - w) <= 0.12 * w for d, w in depths[-10:])
     assert len(state.motions) == 6
     assert state.obstacle is not None and state.obstacle.closing == pytest.approx(1.0, abs=0.25)
+
+
+def closing_flows(cfg: Config, p: CorridorProbe, depth: float, rate: float, noise_px: float,
+                  seed: int = 0) -> PointFlow:
+    """The flow of a car's rear ``depth`` m ahead (1.8 m wide, 1.5 m tall) closing at ``rate``
+    times the ego speed (0: it keeps its distance), and of the road around it."""
+    road = scene_depth(cfg, p, None)
+    z = scene_depth(cfg, p, (depth, -0.9, 0.9))
+    on = z < road
+    seen = np.where(on, np.inf if rate == 0.0 else z / rate, z)   # its apparent depth
+    return flows(p, seen, noise_px, seed)
+
+
+def test_a_car_closing_slower_than_the_ego_drives_is_found_at_its_distance(
+        default_config: Config) -> None:
+    """A car ahead closing at half the ego speed has the parallax of a standing surface twice
+    as far: the layer of its closing finds it where it is. One keeping its distance (no
+    parallax at all) is not found in any layer."""
+    cfg = default_config
+    p = probe(cfg)
+    half = RATES.index(0.5)
+    E = hypothesis_evidence(p, closing_flows(cfg, p, 20.0, 0.5, 0.05), np.zeros(len(p.points)),
+                            CAM, RATES)
+    assert E.shape[0] == len(RATES)
+    face = nearest_face(E[half], p.ranges, 5.0)
+    assert face is not None and face[1] == pytest.approx(20.0, rel=0.15)
+    assert E[0][:, SIDE_CELLS:SIDE_CELLS + CELLS].max() < E[half].max()
+    kept = hypothesis_evidence(p, closing_flows(cfg, p, 20.0, 0.0, 0.05),
+                               np.zeros(len(p.points)), CAM, RATES)
+    assert kept[1:, :, SIDE_CELLS:SIDE_CELLS + CELLS].max() < 2.0
+
+
+def test_a_closing_car_is_one_obstacle_whose_time_is_its_apparent_depths(
+        default_config: Config) -> None:
+    """Frame after frame a car 30 m ahead closes at half the ego speed: one obstacle, first
+    found in a closing layer, then, as it comes nearer, where its parallax says a standing
+    surface would be; its time to collision is its gap over its closing speed."""
+    cfg = default_config
+    state, next_id, depth = init_standing(cfg.obstacle), 5, 30.0
+    motion = (np.eye(3), np.array([0.0, 0.0, -SPEED * DT]))
+    first = None
+    for k in range(40):
+        p = probe(cfg)
+        state, next_id = standing_step(state, p, closing_flows(cfg, p, depth, 0.5, 0.08, k),
+                                       np.zeros(len(p.points)), k * DT, DT, SPEED, motion, CAM,
+                                       cfg.mount, cfg.warning.corridor_margin_m, next_id,
+                                       cfg.obstacle)
+        depth -= 0.5 * SPEED * DT
+        if first is None and state.obstacle is not None:
+            first = (state.obstacle, depth)
+    assert first is not None
+    # found first in a closing layer; where it stands is hardly told from a nearer surface
+    # closing slower, how far its parallax puts it is
+    assert first[0].rate < 1.0 and first[0].depth_m < first[1] * 1.2
+    assert first[0].apparent_m == pytest.approx(2.0 * first[1], rel=0.2)
+    ob = state.obstacle
+    assert ob is not None and ob.id == 5 and next_id == 6
+    assert ob.apparent_m == pytest.approx(2.0 * depth, rel=0.2)
+    assert ob.braking == pytest.approx(1.0, abs=0.3)      # its apparent surface stands
+    th = obstacle_threat(ob, frame(cfg), cfg.warning, cfg.obstacle.evidence_threshold)
+    gap = depth - (cfg.mount.vehicle_front_m - cfg.mount.x_m)
+    assert th.ttc == pytest.approx(gap / (0.5 * SPEED), rel=0.25)
+
+
+def test_a_braking_car_meets_the_ego_sooner_than_its_closing_speed_says() -> None:
+    """20 m ahead, closing at 5 m/s and 5 m/s^2 more every second: 4 s at the closing speed
+    of the moment, 2 s as it brakes (20 = 5 T + 2.5 T^2); the rate of change of its time to
+    collision is -(1 + D a / c^2) = -5."""
+    assert braking_ttc(4.0, 5.0) == pytest.approx(2.0)
+    assert braking_ttc(4.0, 1.0) == 4.0                    # it stands, or keeps its speed
+    assert braking_ttc(4.0, 0.6) == 4.0                    # it draws away: never later
+    assert braking_ttc(4.0, 1.0 + 1e-3) == pytest.approx(4.0, rel=1e-3)

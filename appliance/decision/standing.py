@@ -31,7 +31,21 @@ braking to a stop short of it is not warned).
 
 An object approaching along the path at a closing speed below the ego's (a lead car braking
 to a stop) looks like a static surface farther away than it is, by the ratio of the two
-speeds: the time to contact of that surface, ``D / speed``, is the object's own.
+speeds: the time to contact of that surface (its apparent depth over the speed) is the
+object's own at its closing speed of the moment. That surface is far and thin (only the
+object's rows that a surface at the apparent depth would cover test it), so it is also
+hypothesised where the object stands, closing at ``RATES`` of the ego speed: the flow of a
+surface at D closing at r times the ego speed is that of a static one at D / r, the surface's
+own rows all test it, its evidence is carried nearer by r times the distance driven, and its
+alternatives are the road and something that keeps its distance (no flow: a lead car at the
+ego's speed is no closing surface). Where nothing stands, the strongest face of those layers
+is what closes. Its depth is hardly told from a nearer one closing slower (the flow is the
+same); its apparent depth ``D / r`` is, and with it the time to collision. An object that
+brakes towards the car comes nearer faster than its apparent surface would stand: by
+``1 + D a / c^2`` per metre driven (gap D, closing speed c, closing deceleration a); from that
+rate, measured over the frames of one layer, the time to collision at a constant deceleration
+(:func:`braking_ttc`), for an obstacle once found closing slower than the ego (what stands
+does not brake; its depths' jitter would).
 
 Where it cannot work: objects lower than the lowest probe (``HEIGHTS_M``, flat things on the
 road: that is the point); far objects, whose parallax drowns in the flow's error (the
@@ -80,6 +94,8 @@ HISTORY_S = 0.5            # s of driving (at the current speed) an obstacle's c
 MIN_HISTORY_M = 2.0        # m, an obstacle's closing is known once seen over this much driving
 LOST_S = 0.3               # s, an obstacle not seen this long is gone
 TOP_M = 1.0                # m, the top of an obstacle's reported box (the probes reach HEIGHTS_M)
+RATES = (1.0, 0.7, 0.5, 0.35, 0.25)  # the closing speeds (shares of the ego speed) hypothesised:
+                           #   1, it stands; less, it drives ahead on the path, slower
 
 
 Motion = tuple[FloatArray, FloatArray]   # (R (3, 3), t_m (3,) m): X_cur = R X_prev + t
@@ -131,15 +147,19 @@ class Obstacle:
     vehicle-frame lateral extent it was seen over (y0, y1 m, at that depth), its evidence
     (nats), when it was first and last seen (s), whether it was found to continue the roadside,
     and its recent depths against the distance the car drove, each with whether that frame's
-    face joined the roadside (``history``: (driven m, depth m, joined), oldest first, at most
-    ``HISTORY_S`` back). ``roadside`` is decided once it has been seen for ``HISTORY_S`` and
+    face joined the roadside (``history``: (driven m, apparent depth m, joined), oldest first,
+    at most ``HISTORY_S`` back). ``roadside`` is decided once it has been seen for ``HISTORY_S`` and
     over ``MIN_HISTORY_M`` of driving, by the majority of those frames (:func:`joins_roadside`
     flickers where an object's edge meets the background), and kept for as long as it is
     tracked: what joins the parked row does not stand free of it a moment later. Until then, and
     for ``HISTORY_S`` after a frame whose face joins the roadside, it is not warned of
     (``at_roadside``). ``stopped``: it continues the track of a mover that came to a stop there,
     under its id (handover.py); ``top_m``: how high above the road its reported box reaches
-    (the probes reach ``HEIGHTS_M``; a stopped mover's own height, where its track knew it)."""
+    (the probes reach ``HEIGHTS_M``; a stopped mover's own height, where its track knew it).
+    ``rate``: the share of the ego speed it closes at, as the evidence layer it was found in
+    says (1: it stands); ``layer_since_m``: the distance driven when it was first found in
+    that layer; ``was_closing``: it was found closing slower than the ego drives, i.e. moving
+    along the path, in a frame (what was seen to move may brake; what stands does not)."""
 
     id: int
     depth_m: float
@@ -151,6 +171,15 @@ class Obstacle:
     history: tuple[tuple[float, float, bool], ...] = ()
     stopped: bool = False
     top_m: float = TOP_M
+    rate: float = 1.0
+    layer_since_m: float = 0.0
+    was_closing: bool = False
+
+    @property
+    def apparent_m(self) -> float:
+        """The depth (m) of the standing surface whose parallax it has: ``depth_m`` over the
+        share of the ego speed it closes at."""
+        return self.depth_m / self.rate
 
     @property
     def at_roadside(self) -> bool:
@@ -164,13 +193,27 @@ class Obstacle:
         its depths against the distance driven), None before it was seen over
         ``MIN_HISTORY_M`` of driving. The outside of a bend the path is predicted along stays
         ahead as the car turns: it does not come nearer."""
-        if len(self.history) < 3:
-            return None
-        s = np.array([h[0] for h in self.history])
-        d = np.array([h[1] for h in self.history])
-        if s[-1] - s[0] < MIN_HISTORY_M:
-            return None
-        return float(-np.polyfit(s, d, 1)[0])
+        return fit_closing(self.history)
+
+    @property
+    def braking(self) -> float | None:
+        """``closing`` over the frames of its present layer only (each layer has a depth of
+        its own for the same parallax: a change of layer is no motion), None before it was
+        seen in that layer over ``MIN_HISTORY_M`` of driving."""
+        return fit_closing(tuple(h for h in self.history if h[0] >= self.layer_since_m))
+
+
+def fit_closing(history: tuple[tuple[float, float, bool], ...]) -> float | None:
+    """The least-squares slope of the depths of ``history`` against the distance driven,
+    negated (m nearer per metre driven); None over less than three frames or
+    ``MIN_HISTORY_M`` of driving."""
+    if len(history) < 3:
+        return None
+    s = np.array([h[0] for h in history])
+    d = np.array([h[1] for h in history])
+    if s[-1] - s[0] < MIN_HISTORY_M:
+        return None
+    return float(-np.polyfit(s, d, 1)[0])
 
 
 @dataclass(frozen=True)
@@ -195,7 +238,8 @@ def ranges(cfg: ObstacleConfig) -> FloatArray:
 
 
 def init_standing(cfg: ObstacleConfig) -> StandingState:
-    return StandingState(evidence=np.zeros((len(ranges(cfg)), CELLS + 2 * SIDE_CELLS)))
+    return StandingState(evidence=np.zeros((len(RATES), len(ranges(cfg)),
+                                            CELLS + 2 * SIDE_CELLS)))
 
 
 def corridor_width(mount: MountConfig, margin: float) -> float:
@@ -302,7 +346,7 @@ def corridor_probe(pose: CameraPose, camera: PinholeCamera, ego: EgoMotion,
 
 
 def hypothesis_evidence(p: CorridorProbe, flow: PointFlow | None, mover_p: FloatArray,
-                        camera: PinholeCamera) -> FloatArray:
+                        camera: PinholeCamera, rates: tuple[float, ...] = (1.0,)) -> FloatArray:
     """This frame's evidence (bins, cells), nats: for each hypothesis (an upright surface at
     a distance, in a cell), the summed log-likelihood ratio against the road of the points
     whose ray meets that surface between ``SURFACE_M`` above the road, each point's residuals
@@ -312,7 +356,7 @@ def hypothesis_evidence(p: CorridorProbe, flow: PointFlow | None, mover_p: Float
     The flow's error is measured on the frame itself (:func:`flow_error`), plus
     ``RELATIVE_ERROR`` of the road's flow at the point."""
     D, offsets = p.ranges, p.offsets
-    out = np.zeros((len(D), len(offsets)))
+    out = np.zeros((len(rates), len(D), len(offsets)))
     if flow is None or len(p.points) == 0:
         return out
     x_cur = camera.undistort(p.points)
@@ -347,16 +391,25 @@ def hypothesis_evidence(p: CorridorProbe, flow: PointFlow | None, mover_p: Float
     cell = np.floor((lateral - (offsets[0] - 0.5 * width / len(offsets))) * len(offsets) / width)
     on = (height >= SURFACE_M[0]) & (height <= SURFACE_M[1]) & (cell >= 0) \
         & (cell < len(offsets))
-    w_hyp = 1.0 / (lam - p.t_m[2])
     g_abs = np.sqrt(g2)[:, None]
     a = (along / np.sqrt(g2))[:, None]                      # the flow along g, px
     sigma = np.sqrt(sigma2)[:, None]
     r_road = np.minimum(((a - g_abs * w_road[:, None]) / sigma) ** 2, RESIDUAL_CLIP ** 2)
-    r_hyp = np.minimum(((a - g_abs * w_hyp) / sigma) ** 2, RESIDUAL_CLIP ** 2)
-    llr = 0.5 * (r_road - r_hyp) * share[:, None]   # the part of the flow across g cancels
-    on &= np.isfinite(llr)
     i, k = np.nonzero(on)
-    np.add.at(out, (k, cell[i, k].astype(np.int64)), llr[i, k])
+    cells = cell[i, k].astype(np.int64)
+    a, g_abs, sigma, lam, r_road = a[i, 0], g_abs[i, 0], sigma[i, 0], lam[i, k], r_road[i, 0]
+    # the alternatives of a surface that closes slower than the ego drives: the road, or
+    # something that keeps its distance (no translational flow)
+    r_kept = np.minimum(np.minimum((a / sigma) ** 2, RESIDUAL_CLIP ** 2), r_road)
+    for j, rate in enumerate(rates):
+        # a surface closing at ``rate`` times the ego speed: its flow is the static flow of a
+        # point ``1 / rate`` times as far (the camera moved ``rate t`` relative to it)
+        w_hyp = rate / (lam - rate * p.t_m[2])
+        r_hyp = np.minimum(((a - g_abs * w_hyp) / sigma) ** 2, RESIDUAL_CLIP ** 2)
+        alt = r_road if rate >= 1.0 else r_kept
+        llr = 0.5 * (alt - r_hyp) * share[i]        # the part of the flow across g cancels
+        ok = np.isfinite(llr)
+        np.add.at(out[j], (k[ok], cells[ok]), llr[ok])
     return out
 
 
@@ -489,35 +542,48 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
     D = ranges(cfg)
     driven = state.driven_m + max(speed, 0.0) * dt
     keep = math.exp(-max(dt, 0.0) / cfg.memory_s) if cfg.memory_s > 0.0 else 0.0
-    evidence = carried(state.evidence, D, max(speed, 0.0) * dt, keep)
+    travel = max(speed, 0.0) * dt
+    evidence = np.stack([carried(layer, D, rate * travel, keep)
+                         for layer, rate in zip(state.evidence, RATES)])
     if p is not None:
-        evidence = evidence + hypothesis_evidence(p, flow, mover_p, camera)
-    best = evidence.max(axis=1) if len(D) else np.zeros(0)
+        evidence = evidence + hypothesis_evidence(p, flow, mover_p, camera, RATES)
     obstacle = state.obstacle
     if obstacle is not None and t - obstacle.seen > LOST_S:
         obstacle = None
-    face = nearest_face(evidence, D, cfg.evidence_threshold)
+    face, layer = nearest_face(evidence[0], D, cfg.evidence_threshold), 0
+    if face is None:
+        # nothing stands: the strongest face of something closing slower
+        faces = [(f, j) for j in range(1, len(RATES))
+                 if (f := nearest_face(evidence[j], D, cfg.evidence_threshold)) is not None]
+        if faces:
+            face, layer = max(faces, key=lambda fj: float(
+                evidence[fj[1], fj[0][0], fj[0][2]:fj[0][3] + 1].max()))
     if face is not None:
         k, depth, c0, c1 = face
+        layered = evidence[layer]
         offsets = cell_offsets(corridor_width(mount, margin))
         half = 0.5 * corridor_width(mount, margin) / CELLS
         lateral = (float(offsets[c0] - half), float(offsets[c1] + half))
-        side = joins_roadside(evidence, D, depth, c0, c1, cfg.evidence_threshold)
+        side = joins_roadside(layered, D, depth, c0, c1, cfg.evidence_threshold)
         ident, since = (next_id, t) if obstacle is None else (obstacle.id, obstacle.since)
         stopped = obstacle is not None and obstacle.stopped
         top = obstacle.top_m if obstacle is not None else TOP_M
         history = () if obstacle is None else obstacle.history
         if obstacle is None:
             next_id += 1
-        history = tuple(h for h in (*history, (driven, depth, side))
+        history = tuple(h for h in (*history, (driven, depth / RATES[layer], side))
                         if h[0] >= driven - HISTORY_S * max(speed, 0.1))
         roadside = obstacle is not None and obstacle.roadside
         if t - since >= HISTORY_S and history[-1][0] - history[0][0] >= MIN_HISTORY_M:
             roadside = roadside or 2 * sum(h[2] for h in history) > len(history)
         obstacle = Obstacle(id=ident, depth_m=depth, lateral_m=lateral,
-                            evidence=float(evidence[k, c0:c1 + 1].max()), since=since, seen=t,
+                            evidence=float(layered[k, c0:c1 + 1].max()), since=since, seen=t,
                             roadside=roadside, history=history, stopped=stopped,
-                            top_m=top)
+                            top_m=top, rate=RATES[layer],
+                            layer_since_m=driven if obstacle is None
+                            or obstacle.rate != RATES[layer] else obstacle.layer_since_m,
+                            was_closing=RATES[layer] < 1.0
+                            or (obstacle is not None and obstacle.was_closing))
     motions = (*state.motions, motion)[-MOTIONS:]
     return StandingState(evidence=evidence, obstacle=obstacle, motions=motions,
                          driven_m=driven), next_id
@@ -540,12 +606,26 @@ def obstacle_box(ob: Obstacle, pose: CameraPose, camera: PinholeCamera, mount: M
 
 
 
+def braking_ttc(ttc: float, closing: float) -> float:
+    """The time to collision (s) of something whose constant-closing time to collision is
+    ``ttc`` and which comes ``closing`` m nearer per metre driven (the rate of change of that
+    time is ``-closing``): closing at a constant deceleration of the gap, ``D = c T + a T^2 / 2``
+    with ``a / D = (closing - 1) / ttc^2``. A closing of 1 or less (it stands, its speed is
+    its own and constant, or it draws away) leaves ``ttc`` as it is: never later."""
+    k = closing - 1.0
+    if k <= 1e-6:
+        return ttc
+    return ttc * (math.sqrt(1.0 + 2.0 * k) - 1.0) / k
+
+
 def obstacle_threat(ob: Obstacle, f: FrameContext, cfg: WarningConfig,
                     evidence_threshold: float) -> TrackThreat:
     """The threat of an obstacle standing in the path: a static object ``ob.depth_m`` ahead,
     across its lateral extent, in the path if the ego vehicle's own width (no margin) meets
     one of its cells' centres; its time to collision from the ego's arc and braking
-    (``threat.predict_path``); its confidence ``1 - exp(-evidence / threshold)``."""
+    (``threat.predict_path``) to its apparent depth, sooner where, once seen moving, it comes
+    nearer faster than a standing object (:func:`braking_ttc`); its confidence
+    ``1 - exp(-evidence / threshold)``."""
     mount, speed, yaw = f.mount, f.speed, f.yaw_rate
     curvature = yaw / speed if speed > 0.1 else 0.0
     x = mount.x_m + ob.depth_m
@@ -562,6 +642,11 @@ def obstacle_threat(ob: Obstacle, f: FrameContext, cfg: WarningConfig,
     wide = predict_path(pos, still, speed, yaw, mount, CORRIDOR_HYSTERESIS_M, radius,
                         cfg.horizon_s, 0.0, f.braking)
     ttc = base.ttc if base.ttc is not None else wide.ttc
+    if ob.rate < 1.0 and ttc is not None:
+        # closing at ``rate`` of the ego speed: the time to reach its apparent depth
+        ttc = ttc * ob.apparent_m / ob.depth_m
+    if ttc is not None and ob.was_closing and ob.braking is not None:
+        ttc = braking_ttc(ttc, ob.braking)
     azimuth = math.atan2(y - mount.y_m, x - mount.x_m)
     report = TrackReport(
         id=ob.id,

@@ -392,3 +392,24 @@ def test_a_braking_car_meets_the_ego_sooner_than_its_closing_speed_says() -> Non
     assert braking_ttc(4.0, 1.0) == 4.0                    # it stands, or keeps its speed
     assert braking_ttc(4.0, 0.6) == 4.0                    # it draws away: never later
     assert braking_ttc(4.0, 1.0 + 1e-3) == pytest.approx(4.0, rel=1e-3)
+
+
+def test_only_what_was_seen_moving_is_taken_to_brake(default_config: Config) -> None:
+    """Depths that come nearer twice as fast as the distance driven: a lead car braking, when
+    it was seen closing slower than the ego before; the jitter of a standing car's depths,
+    when it never was."""
+    cfg = default_config
+    faster = ((0.0, 31.0, False), (1.5, 28.0, False), (3.0, 25.0, False))
+    standing = Obstacle(id=7, depth_m=25.0, lateral_m=(-0.4, 0.4), evidence=40.0, since=0.0,
+                        seen=0.0, history=faster)
+    assert standing.braking == pytest.approx(2.0)
+    still = obstacle_threat(standing, frame(cfg), cfg.warning, 16.0)
+    gap = 25.0 - (cfg.mount.vehicle_front_m - cfg.mount.x_m)
+    assert still.ttc == pytest.approx(gap / SPEED, abs=0.06)
+    lead = dataclasses.replace(standing, was_closing=True)
+    brakes = obstacle_threat(lead, frame(cfg), cfg.warning, 16.0)
+    assert brakes.ttc == pytest.approx(braking_ttc(still.ttc, 2.0), abs=0.06)
+    assert brakes.ttc < 0.8 * still.ttc
+    # a change of layer is no motion: only the frames of the present one count
+    switched = dataclasses.replace(lead, layer_since_m=1.5)
+    assert switched.braking is None

@@ -96,6 +96,7 @@ LOST_S = 0.3               # s, an obstacle not seen this long is gone
 TOP_M = 1.0                # m, the top of an obstacle's reported box (the probes reach HEIGHTS_M)
 RATES = (1.0, 0.7, 0.5, 0.35, 0.25)  # the closing speeds (shares of the ego speed) hypothesised:
                            #   1, it stands; less, it drives ahead on the path, slower
+CLOSING_WIDTH_M = 1.2      # m, what closes slower than the ego is a vehicle at least this wide
 
 
 Motion = tuple[FloatArray, FloatArray]   # (R (3, 3), t_m (3,) m): X_cur = R X_prev + t
@@ -553,8 +554,10 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
     face, layer = nearest_face(evidence[0], D, cfg.evidence_threshold), 0
     if face is None:
         # nothing stands: the strongest face of something closing slower
+        cell = corridor_width(mount, margin) / CELLS
         faces = [(f, j) for j in range(1, len(RATES))
-                 if (f := nearest_face(evidence[j], D, cfg.evidence_threshold)) is not None]
+                 if (f := nearest_face(evidence[j], D, cfg.evidence_threshold)) is not None
+                 and (f[3] - f[2] + 1) * cell >= CLOSING_WIDTH_M - 1e-9]
         if faces:
             face, layer = max(faces, key=lambda fj: float(
                 evidence[fj[1], fj[0][0], fj[0][2]:fj[0][3] + 1].max()))

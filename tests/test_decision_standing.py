@@ -323,11 +323,11 @@ def test_evidence_accumulates_on_the_road_and_an_obstacle_keeps_its_id(
 
 
 def closing_flows(cfg: Config, p: CorridorProbe, depth: float, rate: float, noise_px: float,
-                  seed: int = 0) -> PointFlow:
-    """The flow of a car's rear ``depth`` m ahead (1.8 m wide, 1.5 m tall) closing at ``rate``
-    times the ego speed (0: it keeps its distance), and of the road around it."""
+                  seed: int = 0, width: float = 1.8) -> PointFlow:
+    """The flow of a car's rear ``depth`` m ahead (``width`` m wide, 1.5 m tall) closing at
+    ``rate`` times the ego speed (0: it keeps its distance), and of the road around it."""
     road = scene_depth(cfg, p, None)
-    z = scene_depth(cfg, p, (depth, -0.9, 0.9))
+    z = scene_depth(cfg, p, (depth, -0.5 * width, 0.5 * width))
     on = z < road
     seen = np.where(on, np.inf if rate == 0.0 else z / rate, z)   # its apparent depth
     return flows(p, seen, noise_px, seed)
@@ -413,3 +413,26 @@ def test_only_what_was_seen_moving_is_taken_to_brake(default_config: Config) -> 
     # a change of layer is no motion: only the frames of the present one count
     switched = dataclasses.replace(lead, layer_since_m=1.5)
     assert switched.braking is None
+
+
+def test_what_closes_slower_than_the_ego_is_a_vehicle(default_config: Config) -> None:
+    """A face one cell wide in a closing layer is no vehicle ahead (less flow than the road's
+    is also what poor texture gives): not reported; three cells (1.2 m) are."""
+    cfg = default_config
+    D = ranges(cfg.obstacle)
+    k = int(np.argmin(np.abs(D - 20.0)))
+    half = RATES.index(0.5)
+
+    def found(cells: range) -> Obstacle | None:
+        E = np.full((len(RATES), len(D), CELLS + 2 * SIDE_CELLS), -5.0)
+        for c in cells:
+            E[half, k, SIDE_CELLS + c] = 40.0
+        state = dataclasses.replace(init_standing(cfg.obstacle), evidence=E)
+        state, _ = standing_step(state, None, None, np.zeros(0), 0.0, DT, SPEED, None, CAM,
+                                 cfg.mount, cfg.warning.corridor_margin_m, 1, cfg.obstacle)
+        return state.obstacle
+
+    assert found(range(2, 3)) is None
+    wide = found(range(1, 4))
+    assert wide is not None and wide.rate == 0.5 and wide.apparent_m == pytest.approx(
+        2.0 * wide.depth_m)

@@ -2,7 +2,9 @@
 
 The world (``../shared/worlds/kitti-street``, its README) is a second, independent simulator
 with its own ``generate.py`` and ``score.py``; nothing of it is copied here. This module
-finds an interpreter that runs it, generates the recordings that are missing, scores runs
+finds an interpreter that runs it, generates the recordings that are missing (its scenarios,
+and cars standing or braking in the lane that ``_kitti_street_standing.py`` adds through its
+``HOLDOUT_MOVERS`` hook), scores runs
 with ``score_all.py --json`` and maps each score to the columns of
 :mod:`appliance.evaluation.pooled`:
 
@@ -32,6 +34,7 @@ from typing import Any
 MODULES = ("numpy", "scipy", "cv2", "can", "cantools", "opendbc")
 PACKAGES = ("numpy", "scipy", "opencv-python-headless", "python-can", "cantools", "opendbc")
 REPO = Path(__file__).resolve().parents[1]
+STANDING = Path(__file__).resolve().with_name("_kitti_street_standing.py")
 # score.py metric -> our target name
 TARGET_NAMES = {"lead_time_s": "lead_time", "false_level2": "no_false_level2",
                 "detection_delay_frames": "detection", "ttc_rel_error": "ttc_error",
@@ -95,8 +98,14 @@ def find_python(given: str | None) -> tuple[str, str]:
     return python, how
 
 
+def generator(world: Path) -> list[str]:
+    """The world's generator, with the standing and braking cars of
+    ``_kitti_street_standing.py`` registered through its ``HOLDOUT_MOVERS`` hook."""
+    return [str(STANDING), str(world)]
+
+
 def scenarios(python: str, world: Path) -> list[str]:
-    p = subprocess.run([python, str(world / "generate.py"), "--list"], capture_output=True,
+    p = subprocess.run([python, *generator(world), "--list"], capture_output=True,
                        text=True, check=False)
     if p.returncode != 0:
         raise WorldError(f"{world / 'generate.py'} --list failed: {p.stderr.strip()}")
@@ -118,7 +127,7 @@ def generate(python: str, world: Path, out: Path, wanted: Sequence[tuple[str, in
     for seed, names in sorted(missing.items()):
         print(f"kitti-street: generating {len(names)} recordings of seed {seed} "
               f"(30-100 s each per core)", flush=True)
-        p = subprocess.run([python, str(world / "generate.py"), "--out", str(out),
+        p = subprocess.run([python, *generator(world), "--out", str(out),
                             "--only", ",".join(names), "--seeds", "1", "--first-seed", str(seed),
                             "--jobs", str(jobs)], capture_output=True, text=True, check=False)
         if p.returncode not in (0, 1):  # 1: a collision flag other than expected, still written

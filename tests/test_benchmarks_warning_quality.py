@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -40,6 +41,33 @@ def test_the_worlds_scores_map_to_our_columns(tmp_path: Path) -> None:
         assert ev["targets"][ours] is {"PASS": True, "FAIL": False}[m[theirs]["status"]]
     row = pooled.aggregate([ev])[0]
     assert row["ghosts/min"] == "-" and row["runs"] == "1/1" and row["coll"] == "yes"
+
+
+@pytest.mark.skipif(not (WORLD / "score.py").is_file(), reason=f"no kitti-street world at {WORLD}")
+def test_the_world_also_has_cars_standing_and_braking_in_the_lane() -> None:
+    """Through the world's own mover hook: its scenarios and four more, whose cars the world's
+    collision test finds where they were planned (the braking car stopped before it)."""
+    python, _ = ks.find_python(None)
+    names = ks.scenarios(python, WORLD)
+    assert {"static_bend", "lead_car_away", "car_stopped_k00", "car_stopped_k06",
+            "lead_braking_k06", "car_stopped_next_lane_k06"} <= set(names)
+    code = (
+        "import sys; sys.path.insert(0, sys.argv[1]); sys.path.insert(0, sys.argv[2]);"
+        "import numpy as np, scenarios as S, _kitti_street_standing as K; K.register(S);"
+        "out = []\n"
+        "for n in ('car_stopped_k06', 'lead_braking_k06', 'car_stopped_next_lane_k06'):\n"
+        "    sc = S.Scenario(n, 0); m = sc.movers[0]\n"
+        "    v = [float(np.ptp(m.motion(np.array([t - 0.1, t]))[3])) / 0.1\n"
+        "         for t in (1.0, sc.t_conflict - 0.3)]\n"
+        "    out.append((sc.collision_t, sc.t_conflict, v[0], v[1]))\n"
+        "print(out)")
+    p = subprocess.run([python, "-c", code, str(WORLD), str(ks.STANDING.parent)],
+                       capture_output=True, text=True, check=True)
+    (ct0, tc0, a0, b0), (ct1, tc1, a1, b1), (ct2, _, _, _) = eval(p.stdout)
+    assert ct0 == pytest.approx(tc0, abs=0.3) and a0 == b0 == 0.0    # it stands
+    assert ct1 == pytest.approx(tc1, abs=0.3)
+    assert a1 > 8.0 and b1 < 0.3 * a1                # at the ego's speed, then braking hard
+    assert ct2 is None                               # the next lane: no contact
 
 
 def test_an_unscored_run_is_an_error_not_a_clean_run() -> None:

@@ -278,9 +278,13 @@ def test_every_track_says_why_it_warns_or_not(default_config: Config) -> None:
     # a hidden track's reason says it is hidden
     hidden = replace(threat(3, 1.0), coasted=True)
     assert reasons(cfg, [(hidden,)] * 3)[-1] == {3: "warning, hidden"}
-    # the warned track whose TTC rises past the threshold is held for hold_s: "warning, held"
+    # the warned track whose TTC rises past the threshold is held for hold_s, and says what it
+    # no longer meets
     got = reasons(cfg, [(threat(1, 1.0),)] * 3 + [(threat(1, 5.0),)] * 2)
-    assert got[-1] == {1: "warning, held"}
+    assert got[-1] == {1: "warning, held: ttc 5.0 s above 2.1 s"}
+    lost = replace(threat(1, None), on_course=False, on_course_wide=False, miss_m=3.6)
+    got = reasons(cfg, [(threat(1, 1.0),)] * 3 + [(lost,)] * 2)
+    assert got[-1] == {1: "warning, held: path misses corridor by 3.6 m"}
 
 
 def test_without_the_ego_motion_a_track_raises_at_most_a_caution(default_config: Config) -> None:

@@ -234,7 +234,10 @@ def warning_step(state: WarningState, threats: tuple[TrackThreat, ...], t: float
     for th in threats:
         tid = th.report.id
         if level > 0 and tid == new_track:
-            why = LEVEL_NAMES[level] + (", held" if levels[tid] < level else "")
+            why = LEVEL_NAMES[level]
+            if levels[tid] < level:   # held: and what it no longer meets
+                lapsed = indication(th, thresholds[level] + lookahead, cfg)
+                why += ", held" + (f": {lapsed}" if lapsed else "")
         elif levels[tid] > 0:
             why = f"{LEVEL_NAMES[levels[tid]]}, track {new_track} warned"
         else:

@@ -348,8 +348,8 @@ def corridor_probe(pose: CameraPose, camera: PinholeCamera, ego: EgoMotion,
 
 def hypothesis_evidence(p: CorridorProbe, flow: PointFlow | None, mover_p: FloatArray,
                         camera: PinholeCamera, rates: tuple[float, ...] = (1.0,)) -> FloatArray:
-    """This frame's evidence (bins, cells), nats: for each hypothesis (an upright surface at
-    a distance, in a cell), the summed log-likelihood ratio against the road of the points
+    """This frame's evidence (len(rates), bins, cells), nats: for each hypothesis (an upright
+    surface at a distance, in a cell, closing at a share of the ego speed), the summed log-likelihood ratio against the road of the points
     whose ray meets that surface between ``SURFACE_M`` above the road, each point's residuals
     truncated at ``RESIDUAL_CLIP`` std (no single point decides). Points not measured or moving
     independently (``mover_p``: p(x) at the points, or 1 on a mover) say nothing.
@@ -541,9 +541,9 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
     in the path (a new one takes ``next_id``); ``motion``, the camera's since the previous
     frame, kept for the next frames' probes. Returns the state and the next free id."""
     D = ranges(cfg)
-    driven = state.driven_m + max(speed, 0.0) * dt
-    keep = math.exp(-max(dt, 0.0) / cfg.memory_s) if cfg.memory_s > 0.0 else 0.0
     travel = max(speed, 0.0) * dt
+    driven = state.driven_m + travel
+    keep = math.exp(-max(dt, 0.0) / cfg.memory_s) if cfg.memory_s > 0.0 else 0.0
     evidence = np.stack([carried(layer, D, rate * travel, keep)
                          for layer, rate in zip(state.evidence, RATES)])
     if p is not None:
@@ -551,10 +551,11 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
     obstacle = state.obstacle
     if obstacle is not None and t - obstacle.seen > LOST_S:
         obstacle = None
+    width = corridor_width(mount, margin)
+    cell = width / CELLS
     face, layer = nearest_face(evidence[0], D, cfg.evidence_threshold), 0
     if face is None:
         # nothing stands: the strongest face of something closing slower
-        cell = corridor_width(mount, margin) / CELLS
         faces = [(f, j) for j in range(1, len(RATES))
                  if (f := nearest_face(evidence[j], D, cfg.evidence_threshold)) is not None
                  and (f[3] - f[2] + 1) * cell >= CLOSING_WIDTH_M - 1e-9]
@@ -564,8 +565,8 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
     if face is not None:
         k, depth, c0, c1 = face
         layered = evidence[layer]
-        offsets = cell_offsets(corridor_width(mount, margin))
-        half = 0.5 * corridor_width(mount, margin) / CELLS
+        offsets = cell_offsets(width)
+        half = 0.5 * cell
         lateral = (float(offsets[c0] - half), float(offsets[c1] + half))
         side = joins_roadside(layered, D, depth, c0, c1, cfg.evidence_threshold)
         ident, since = (next_id, t) if obstacle is None else (obstacle.id, obstacle.since)
@@ -645,9 +646,9 @@ def obstacle_threat(ob: Obstacle, f: FrameContext, cfg: WarningConfig,
     wide = predict_path(pos, still, speed, yaw, mount, CORRIDOR_HYSTERESIS_M, radius,
                         cfg.horizon_s, 0.0, f.braking)
     ttc = base.ttc if base.ttc is not None else wide.ttc
-    if ob.rate < 1.0 and ttc is not None:
+    if ttc is not None:
         # closing at ``rate`` of the ego speed: the time to reach its apparent depth
-        ttc = ttc * ob.apparent_m / ob.depth_m
+        ttc = ttc / ob.rate
     if ttc is not None and ob.was_closing and ob.braking is not None:
         ttc = braking_ttc(ttc, ob.braking)
     azimuth = math.atan2(y - mount.y_m, x - mount.x_m)

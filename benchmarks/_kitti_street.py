@@ -108,7 +108,7 @@ def scenarios(python: str, world: Path) -> list[str]:
     p = subprocess.run([python, *generator(world), "--list"], capture_output=True,
                        text=True, check=False)
     if p.returncode != 0:
-        raise WorldError(f"{world / 'generate.py'} --list failed: {p.stderr.strip()}")
+        raise WorldError(f"{' '.join(generator(world))} --list failed: {p.stderr.strip()}")
     return [line.split()[0] for line in p.stdout.splitlines() if line.strip()]
 
 

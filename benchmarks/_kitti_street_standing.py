@@ -20,6 +20,7 @@ path, ego motion, street, renderer, truth and collision test are its own.
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
@@ -81,6 +82,10 @@ def register(S: Any) -> None:
 def main(argv: list[str]) -> int:
     if not argv:
         print(__doc__, file=sys.stderr)
+        return 2
+    missing = [f for f in ("generate.py", "scenarios.py") if not (Path(argv[0]) / f).is_file()]
+    if missing:
+        print(f"{argv[0]}: not the kitti-street world (no {', '.join(missing)})", file=sys.stderr)
         return 2
     sys.path.insert(0, argv[0])
     import scenarios  # the world's, from its directory

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -68,6 +69,16 @@ def test_the_world_also_has_cars_standing_and_braking_in_the_lane() -> None:
     assert ct1 == pytest.approx(tc1, abs=0.3)
     assert a1 > 8.0 and b1 < 0.3 * a1                # at the ego's speed, then braking hard
     assert ct2 is None                               # the next lane: no contact
+
+
+def test_a_directory_that_is_not_the_world_is_named_not_a_traceback(tmp_path: Path) -> None:
+    (tmp_path / "generate.py").write_text("")        # half a world: no scenarios.py
+    p = subprocess.run([sys.executable, str(ks.STANDING), str(tmp_path), "--list"],
+                       capture_output=True, text=True, check=False)
+    assert p.returncode == 2 and "Traceback" not in p.stderr
+    assert p.stderr.strip() == f"{tmp_path}: not the kitti-street world (no scenarios.py)"
+    with pytest.raises(ks.WorldError, match=f"{ks.STANDING.name} {tmp_path} --list failed"):
+        ks.scenarios(sys.executable, tmp_path)
 
 
 def test_an_unscored_run_is_an_error_not_a_clean_run() -> None:

@@ -34,6 +34,7 @@ from appliance.decision.frame import (
     FrameContext,
     can_speed,
     finite,
+    frame_motion,
     measure_track,
     speed_slope,
 )
@@ -46,7 +47,6 @@ from appliance.decision.probability_map import empty_map, spatio_temporal_filter
 from appliance.decision.standing import (
     CorridorProbe,
     corridor_probe,
-    frame_motion,
     init_standing,
     inside,
     obstacle_threat,
@@ -150,9 +150,7 @@ def decide(state: DecisionState, obs: Observation, flows: Mapping[ProbeKey, Poin
             lost = tuple(lt for lt in lost if lt is not found)
             tracks[i] = tr = replace(tr, id=found.id)
         if tr.confirmed:
-            outline = cues[tr.uid].get("outline")
-            threats.append(assess(shown(tr, None if outline is None else outline.top),
-                                  cues[tr.uid], f, cfg.warning))
+            threats.append(assess(shown(tr, cues[tr.uid].states), cues[tr.uid], f, cfg.warning))
     threats = pool_covered(threats)
     corridor = obs.probes.get(OBSTACLE_PROBE)
     cp = corridor if isinstance(corridor, CorridorProbe) else None

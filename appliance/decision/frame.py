@@ -28,11 +28,23 @@ from appliance.decision.ground_state import (
 )
 from appliance.decision.tracking import ImageTrack
 from appliance.messages import EgoMotion, SensorSample
-from appliance.vision.geometry import PinholeCamera
+from appliance.vision.geometry import FloatArray, PinholeCamera, euler_to_matrix
+
+Motion = tuple[FloatArray, FloatArray]   # (R (3, 3), t_m (3,) m): X_cur = R X_prev + t
 
 BORDER_MARGIN_PX = 3   # px, a box this close (plus particle spacing and halo) to a border has no contact
 BRAKING_M_S2 = -1.0    # m/s^2, the car brakes when its CAN speed falls faster than this
 ACCEL_TAU_S = 0.3      # s, low pass of the CAN speed's slope
+
+
+def frame_motion(ego: EgoMotion, sensors: SensorSample, dt: float) -> Motion | None:
+    """The camera's motion since the previous frame: the refined rotation, the translation
+    direction scaled by the CAN speed; None where the speed is unknown or at a standstill."""
+    speed = sensors.speed_m_s
+    if ego.standstill or not sensors.can_valid or not math.isfinite(speed) or speed <= 0.1:
+        return None
+    return euler_to_matrix(ego.rotation), \
+        np.asarray(ego.translation_dir, dtype=np.float64) * speed * dt
 
 
 def can_speed(sensors: SensorSample) -> float | None:
@@ -174,6 +186,20 @@ def contact_of(c: Cluster, f: FrameContext, model: GroundModel) -> GroundContact
                             f.flow_std_px)
     foot = min(c.foot_v + shift, float(camera.height))
     return ground_contact(camera, (0.5 * (u0 + u1), foot - 0.5), pose, model)
+
+
+def lowered_contact(c: Cluster, f: FrameContext, model: GroundModel, contact: GroundContact,
+                    bottom: float) -> GroundContact | None:
+    """The ground contact of a cluster whose object reaches down to row ``bottom`` (px, the
+    foot cue's), when that is below the contact's row."""
+    u0, _, u1, _ = c.bbox
+    pose = f.pose
+    range_m = math.hypot(contact.z[0] - pose.position[0], contact.z[1] - pose.position[1])
+    row = c.foot_v + foot_halo_shift(range_m, f.speed * f.dt, f.camera.fy, pose.position[2],
+                                     f.halo_px, f.flow_std_px)
+    if bottom <= row:
+        return contact
+    return ground_contact(f.camera, (0.5 * (u0 + u1), bottom - 0.5), pose, model)
 
 
 def measure_track(track: ImageTrack, f: FrameContext, model: GroundModel) -> TrackMeasurement:

@@ -148,11 +148,14 @@ def outline(p: OutlineProbe | None, flow_px: FloatArray | None, valid_px: NDArra
                    flows=raw[: last + 1][use])
 
 
-def extended(track_: ImageTrack, top: float) -> ImageTrack:
-    """``track_`` with its box reaching up to row ``top`` (bottom and width kept)."""
+def extended(track_: ImageTrack, top: float, bottom: float | None = None) -> ImageTrack:
+    """``track_`` with its box reaching up to row ``top`` and down to row ``bottom`` (width
+    kept; a box is never cut)."""
     _, v0, _, v1 = track_.bbox
-    if top >= v0:
+    lo = v1 if bottom is None else max(v1, bottom)
+    hi = min(v0, top)
+    if hi >= v0 and lo <= v1:
         return track_
     x = track_.x.copy()
-    x[1, 0] = 0.5 * (top + v1)
-    return replace(track_, x=x, size=(track_.size[0], v1 - top))
+    x[1, 0] = 0.5 * (hi + lo)
+    return replace(track_, x=x, size=(track_.size[0], lo - hi))

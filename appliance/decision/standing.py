@@ -64,11 +64,11 @@ from numpy.typing import NDArray
 
 from appliance.config import MountConfig, ObstacleConfig, WarningConfig
 from appliance.decision.assess import CORRIDOR_HYSTERESIS_M, TrackThreat
-from appliance.decision.frame import FrameContext
+from appliance.decision.frame import FrameContext, Motion, frame_motion
 from appliance.decision.ground_state import MIN_DOWN, CameraPose
 from appliance.decision.threat import near_side_gap, predict_path
 from appliance.messages import EgoMotion, SensorSample, TrackReport
-from appliance.vision.geometry import FloatArray, PinholeCamera, euler_to_matrix, in_image
+from appliance.vision.geometry import FloatArray, PinholeCamera, in_image
 from appliance.vision.likelihood import derotate
 from appliance.vision.probes import PointFlow
 
@@ -97,9 +97,6 @@ TOP_M = 1.0                # m, the top of an obstacle's reported box (the probe
 RATES = (1.0, 0.7, 0.5, 0.35, 0.25)  # the closing speeds (shares of the ego speed) hypothesised:
                            #   1, it stands; less, it drives ahead on the path, slower
 CLOSING_WIDTH_M = 1.2      # m, what closes slower than the ego is a vehicle at least this wide
-
-
-Motion = tuple[FloatArray, FloatArray]   # (R (3, 3), t_m (3,) m): X_cur = R X_prev + t
 
 
 def compose(motions: tuple[Motion | None, ...], now: Motion, frames: int) -> tuple[Motion, int]:
@@ -285,16 +282,6 @@ def window_share(uv: FloatArray, window_px: float) -> FloatArray:
     d = np.abs(uv[:, None, :] - uv[None, :, :])
     near = (d[..., 0] < 0.5 * window_px) & (d[..., 1] < 0.5 * window_px)
     return np.asarray(1.0 / near.sum(axis=1), dtype=np.float64)
-
-
-def frame_motion(ego: EgoMotion, sensors: SensorSample, dt: float) -> Motion | None:
-    """The camera's motion since the previous frame: the refined rotation, the translation
-    direction scaled by the CAN speed; None where the speed is unknown or at a standstill."""
-    speed = sensors.speed_m_s
-    if ego.standstill or not sensors.can_valid or not math.isfinite(speed) or speed <= 0.1:
-        return None
-    return euler_to_matrix(ego.rotation), \
-        np.asarray(ego.translation_dir, dtype=np.float64) * speed * dt
 
 
 def corridor_probe(pose: CameraPose, camera: PinholeCamera, ego: EgoMotion,

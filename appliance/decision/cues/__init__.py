@@ -18,6 +18,7 @@ from appliance.decision.cues.base import Cue, CueInput, Probe, ProbingCue, Track
 from appliance.decision.cues.bearing import Bearing
 from appliance.decision.cues.crossing import CrossingVelocity
 from appliance.decision.cues.depth import Depth
+from appliance.decision.cues.foot import ObjectFoot
 from appliance.decision.cues.ground import GroundContact
 from appliance.decision.cues.motion import Motion
 from appliance.decision.cues.outline import ObjectOutline
@@ -33,6 +34,7 @@ __all__ = ["CUES", "Cue", "CueInput", "Probe", "TrackCues", "probes", "update_cu
 CUES: tuple[Cue, ...] = (
     Bearing(),           # bearing history and rate
     ObjectOutline(),     # how far up the object reaches (flow measured by vision)
+    ObjectFoot(),        # how far down: where it meets the road (flow measured by vision)
     GroundContact(),     # the 3-D state from the ground contact
     CrossingVelocity(),  # its velocity across the line of sight, from the sightings
     ScaleChange(),       # time to contact from the image's growth

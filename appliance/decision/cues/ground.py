@@ -15,6 +15,7 @@ from typing import ClassVar
 
 from appliance.config import GroundCueConfig
 from appliance.decision.cues.base import CueInput
+from appliance.decision.frame import lowered_contact
 from appliance.decision.ground_state import (
     GroundModel,
     GroundTrack,
@@ -50,6 +51,11 @@ class GroundContact:
             # no contact in the frame before: coasting, at constant velocity
             g = ground_predict(g, f.dt, f.sensors, model, steady=f.t - g.t_update > 1.5 * f.dt)
         contact = x.meas.contact
+        low = x.now.get("foot")
+        if contact is not None and low is not None and low.rows > 0 and x.track.cluster is not None:
+            # the object reaches below its cluster: its feet are lower (``object_foot.py``)
+            contact = None if low.at_edge else lowered_contact(
+                x.track.cluster, f, model, contact, low.bottom)
         if contact is not None:
             if x.found is not None and x.found.ground is not None:
                 # the occluded object is back: its coasted state takes the contact

@@ -9,8 +9,9 @@ of road: ``warning.min_height_m``).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Any, ClassVar
 
 from appliance.decision.cues.base import CueInput
 from appliance.decision.object_extent import extended
@@ -38,9 +39,14 @@ def clip_box(box: tuple[float, float, float, float], camera: PinholeCamera
             round(min(max(u1, 0.0), w), 1), round(min(max(v1, 0.0), h), 1))
 
 
-def shown(track: ImageTrack, outline_top: float | None) -> ImageTrack:
-    """The track as reported: its box reaching up to its outline's top."""
-    return track if outline_top is None else extended(track, outline_top)
+def shown(track: ImageTrack, cues: Mapping[str, Any]) -> ImageTrack:
+    """The track as reported: its box reaching up to its outline's top and down to its foot
+    (the states of the ``outline`` and ``foot`` cues in ``cues``, where they have one)."""
+    outline, foot = cues.get("outline"), cues.get("foot")
+    if outline is None and foot is None:
+        return track
+    top = outline.top if outline is not None else track.bbox[1]
+    return extended(track, top, foot.bottom if foot is not None and foot.rows > 0 else None)
 
 
 class Peaks:
@@ -56,9 +62,7 @@ class Peaks:
         if tr.confirmed and tr.cluster is not None and g is not None:
             depth = float(g.position[0] - f.mount.x_m)
             if depth > 0.0:
-                outline = x.now.get("outline")
-                _, v0, _, v1 = clip_box(shown(tr, None if outline is None else outline.top).bbox,
-                                          f.camera)
+                _, v0, _, v1 = clip_box(shown(tr, x.now).bbox, f.camera)
                 height = (v1 - v0) * depth / f.camera.fy
                 peak = max(peak, height)
         return PeakState(probability=max(prev.probability, float(tr.probability)),

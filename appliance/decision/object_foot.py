@@ -1,0 +1,189 @@
+"""Where does a tracked object meet the road? Its flow, followed down the image from its box.
+
+The cluster's foot (its lowest moving particles) is the ground contact the 3-D state rests on.
+Where the particles gather on a pedestrian's hips or knees rather than its feet (thin legs in
+motion lose their flow to the forward-backward check), the contact sits above the feet and
+reads too far: 13 px of legs below the cluster put a pedestrian 20 m ahead at 30 m, its range
+then shrinks slower than the car drives, and it reads as walking away.
+
+:func:`foot_probe` names the pixels on a few columns across and beside the box, row by row
+downward from its bottom to where the road is a third as far; vision measures their flow
+(current frame back to the previous one, forward-backward checked). Each flow is compared with
+two predictions: the object's own (the median flow of its moving particles, with its
+expansion) and the road's at that pixel (a road point there, moved by the camera's motion).
+:func:`foot` walks down the rows: a row where flows follow the object (at least half as many
+as follow the road: between two legs the road shows) belongs to it; the object ends after
+``max_gap`` rows whose flows follow the road and not the object. Rows where the two
+predictions lie too close to tell apart (far away, or an object moving like the road) or
+where nothing was measured neither extend nor stop it, up to ``MAX_BLIND`` of them in a row.
+Pure: decision never sees the images.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from appliance.decision.ground_state import CameraPose, back_project
+from appliance.vision.geometry import FloatArray, PinholeCamera, in_image
+
+COLUMNS = 8          # probe columns across the box and a quarter of its width beside it
+ROWS = 16            # probe rows between the box's bottom and the end of the search
+MIN_STEP_PX = 1.5    # px between rows, at least
+NEAREST_SHARE = 0.33  # the search ends where the road is this share of the contact's range
+EDGE_PX = 6.0        # px, rows this close to the image's bottom are not probed
+SEPARATION = 2.0     # flow std the two predictions must lie apart for a flow to say anything;
+                     #   a flow follows the road within this many std
+ROAD_SHARE = 0.1     # and this share of the road's flow (road slope, body pitch)
+MAX_BLIND = 4        # rows in a row that say nothing end the search
+
+
+@dataclass(frozen=True)
+class FootProbe:
+    """Where :func:`foot` reads the flow: ``points`` (K, 2) px of the current frame (outside
+    the image: sent as (0, 0) and not used), ``grid`` (rows, COLUMNS, 2) the same by row,
+    ``rows`` their image rows (downward from the box's bottom ``v1``), ``in_image`` (rows,
+    COLUMNS), ``road`` (rows, COLUMNS, 2) px the flow a road point at each would have (current
+    minus previous, the camera's rotation included), ``expansion`` (rows,) the scale change per
+    frame of an object standing on the road at each row (the camera's approach over the road's
+    depth there: were the object's feet at that row, its image would grow so), ``step`` px
+    between rows and whether the image's bottom ``cut`` the search short."""
+
+    points: FloatArray
+    grid: FloatArray
+    rows: FloatArray
+    in_image: NDArray[np.bool_]
+    road: FloatArray
+    expansion: FloatArray
+    step: float
+    v1: float
+    cut: bool
+
+
+@dataclass(frozen=True)
+class Foot:
+    """What :func:`foot` found: the object's lowest row (px, an exclusive edge like a box's
+    ``v1``), how many probe rows below the box followed the object, and whether it reaches
+    the image's bottom (the image ended the search before the object ended: the feet are out
+    of sight)."""
+
+    bottom: float
+    rows: int
+    at_edge: bool = False
+
+
+def road_points(camera: PinholeCamera, uv: FloatArray, pose: CameraPose) -> FloatArray:
+    """The road points (N, 3) m, camera frame, seen at ``uv`` (N, 2) px; NaN above the
+    horizon."""
+    ground = back_project(camera, uv, pose)
+    X = np.column_stack([ground, np.zeros(len(ground))]) - np.asarray(pose.position)
+    return np.asarray(X @ pose.rotation())             # Rv^T X per row
+
+
+def road_flow(camera: PinholeCamera, uv: FloatArray, pose: CameraPose,
+              motion: tuple[FloatArray, FloatArray]) -> FloatArray:
+    """The flow (N, 2) px, current minus previous, of road points seen at ``uv`` (N, 2) px in
+    the current frame, for the camera motion ``(R, t)`` (``X_cur = R X_prev + t``, t in m);
+    NaN above the horizon."""
+    R, t = motion
+    X_prev = (road_points(camera, uv, pose) - np.asarray(t)) @ np.asarray(R)  # R^T (X - t)
+    return np.asarray(uv, dtype=np.float64) - camera.project(X_prev)
+
+
+def foot_probe(box: tuple[float, float, float, float], camera: PinholeCamera, pose: CameraPose,
+               motion: tuple[FloatArray, FloatArray]) -> FootProbe | None:
+    """The pixels whose flow :func:`foot` reads below ``box`` (u0, v0, u1, v1; ``v1`` the
+    cluster's foot): ``COLUMNS`` columns over the box widened by a quarter of its width a side,
+    ``ROWS`` rows from ``v1`` down to the row of the road at ``NEAREST_SHARE`` of the range at
+    ``v1``. None when the box's bottom is not below the horizon or no row fits."""
+    u0, v0, u1, v1 = box
+    if not (np.all(np.isfinite(box)) and u1 > u0 and v1 > v0):
+        return None
+    uc = 0.5 * (u0 + u1)
+    contact = back_project(camera, np.array([[uc, v1]]), pose)[0]
+    if not np.all(np.isfinite(contact)):
+        return None
+    cam = np.asarray(pose.position[:2])
+    near = cam + NEAREST_SHARE * (contact - cam)
+    X = (np.array([near[0], near[1], 0.0]) - np.asarray(pose.position)) @ pose.rotation()
+    v_end = camera.project(X[None, :])[0, 1]
+    cut = not (np.isfinite(v_end) and v_end <= camera.height - EDGE_PX)
+    if cut:
+        v_end = camera.height - EDGE_PX
+    if v_end <= v1 + MIN_STEP_PX:
+        return None
+    step = max(MIN_STEP_PX, (v_end - v1) / ROWS)
+    rows = np.arange(v1 + 0.5 * step, v_end, step)
+    w = u1 - u0
+    cols = np.linspace(u0 - 0.25 * w, u1 + 0.25 * w, COLUMNS)
+    pts = np.column_stack([np.tile(cols, len(rows)), np.repeat(rows, len(cols))])
+    ok = in_image(pts, camera.width, camera.height)
+    road = road_flow(camera, pts, pose, motion)
+    ok &= np.all(np.isfinite(road), axis=1)
+    depth = road_points(camera, np.column_stack([np.full(len(rows), uc), rows]), pose)[:, 2]
+    expansion = np.where(depth > 0.0, -float(np.asarray(motion[1])[2]) / depth, 0.0)
+    return FootProbe(points=np.where(ok[:, None], pts, 0.0),
+                     grid=pts.reshape(len(rows), len(cols), 2), rows=rows,
+                     in_image=ok.reshape(len(rows), len(cols)),
+                     road=np.where(ok[:, None], road, 0.0).reshape(len(rows), len(cols), 2),
+                     expansion=np.nan_to_num(expansion), step=step, v1=v1, cut=cut)
+
+
+def foot(p: FootProbe | None, flow_px: FloatArray | None, valid_px: NDArray[np.bool_] | None,
+         object_flow: FloatArray, object_at: FloatArray, sigma_px: float, max_gap: int = 2
+         ) -> Foot | None:
+    """The object's lowest row below the probe's box (module docstring); None without a
+    measurement.
+
+    ``flow_px`` (K, 2), ``valid_px`` (K,): the flow measured at ``p.points``;
+    ``object_flow`` (2,) px: the object's own flow (current minus previous, the rotation's
+    included) at ``object_at`` (2,) px; at x in a probe row, an object reaching down to that
+    row flows ``object_flow + e (x - object_at)``, e the row's ``p.expansion``; ``sigma_px``:
+    a flow's std."""
+    if p is None or flow_px is None or valid_px is None:
+        return None
+    n_rows, n_cols = p.grid.shape[:2]
+    flow = np.asarray(flow_px, dtype=np.float64).reshape(n_rows, n_cols, 2)
+    valid = np.asarray(valid_px, dtype=bool).reshape(n_rows, n_cols) & p.in_image
+    expected = np.asarray(object_flow) + p.expansion[:, None, None] * (
+        p.grid - np.asarray(object_at))
+    sep = np.linalg.norm(expected - p.road, axis=-1)
+    road_len = np.linalg.norm(p.road, axis=-1)
+    tol = SEPARATION * sigma_px + ROAD_SHARE * road_len
+    excess = flow - p.road
+    along = np.sum(excess * p.road, axis=-1) / np.maximum(road_len, 1e-9)
+    across = np.abs(excess[..., 0] * p.road[..., 1] - excess[..., 1] * p.road[..., 0]) \
+        / np.maximum(road_len, 1e-9)
+    telling = valid & (sep >= SEPARATION * sigma_px)
+    follows_road = telling & (np.hypot(along, across) <= tol)
+    # longer than the road's along its direction: something static standing nearer
+    static_nearer = (along > 0.0) & (across <= tol)
+    follows_object = telling & ~follows_road & ~static_nearer
+    bottom, found, gap, blind, ended = p.v1, 0, 0, 0, False
+    for r in range(n_rows):
+        n_obj, n_road = int(follows_object[r].sum()), int(follows_road[r].sum())
+        if n_obj == 0 and n_road == 0:
+            blind += 1
+            if blind > MAX_BLIND:
+                ended = True
+                break
+            continue
+        blind = 0
+        if n_obj >= 1 and 2 * n_obj >= n_road:
+            bottom, found, gap = float(p.rows[r] + 0.5 * p.step), r + 1, 0
+        else:
+            gap += 1
+            if gap >= max_gap:
+                ended = True
+                break
+    return Foot(bottom=bottom, rows=found, at_edge=p.cut and found > 0 and not ended)
+
+
+def lowered(box: tuple[float, float, float, float], bottom: float
+            ) -> tuple[float, float, float, float]:
+    """``box`` reaching down to row ``bottom`` (never raised)."""
+    u0, v0, u1, v1 = box
+    return (u0, v0, u1, max(v1, bottom))
+

@@ -188,17 +188,19 @@ def contact_of(c: Cluster, f: FrameContext, model: GroundModel) -> GroundContact
     return ground_contact(camera, (0.5 * (u0 + u1), foot - 0.5), pose, model)
 
 
-def lowered_contact(c: Cluster, f: FrameContext, model: GroundModel, contact: GroundContact,
-                    bottom: float) -> GroundContact | None:
+def lowered_contact(c: Cluster, f: FrameContext, model: GroundModel,
+                    contact: GroundContact | None, bottom: float) -> GroundContact | None:
     """The ground contact of a cluster whose object reaches down to row ``bottom`` (px, the
-    foot cue's), when that is below the contact's row."""
+    foot cue's), when that is below the contact's row (``contact``, None where the cluster's
+    foot is above the horizon: the particles on a head)."""
     u0, _, u1, _ = c.bbox
     pose = f.pose
-    range_m = math.hypot(contact.z[0] - pose.position[0], contact.z[1] - pose.position[1])
-    row = c.foot_v + foot_halo_shift(range_m, f.speed * f.dt, f.camera.fy, pose.position[2],
-                                     f.halo_px, f.flow_std_px)
-    if bottom <= row:
-        return contact
+    if contact is not None:
+        range_m = math.hypot(contact.z[0] - pose.position[0], contact.z[1] - pose.position[1])
+        row = c.foot_v + foot_halo_shift(range_m, f.speed * f.dt, f.camera.fy,
+                                         pose.position[2], f.halo_px, f.flow_std_px)
+        if bottom <= row:
+            return contact
     return ground_contact(f.camera, (0.5 * (u0 + u1), bottom - 0.5), pose, model)
 
 

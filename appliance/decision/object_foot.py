@@ -93,18 +93,23 @@ def road_flow(camera: PinholeCamera, uv: FloatArray, pose: CameraPose,
 
 
 def foot_probe(box: tuple[float, float, float, float], camera: PinholeCamera, pose: CameraPose,
-               motion: tuple[FloatArray, FloatArray]) -> FootProbe | None:
+               motion: tuple[FloatArray, FloatArray], position: FloatArray | None = None
+               ) -> FootProbe | None:
     """The pixels whose flow :func:`foot` reads below ``box`` (u0, v0, u1, v1; ``v1`` the
     cluster's foot): ``COLUMNS`` columns over the box widened by a quarter of its width a side,
     ``ROWS`` rows from ``v1`` down to the row of the road at ``NEAREST_SHARE`` of the range at
-    ``v1``. None when the box's bottom is not below the horizon or no row fits."""
+    ``v1``; where ``v1`` is above the horizon (the particles on a head), of the range of
+    ``position`` (2,) m, vehicle frame, the track's 3-D state. None without either, or when no
+    row fits."""
     u0, v0, u1, v1 = box
     if not (np.all(np.isfinite(box)) and u1 > u0 and v1 > v0):
         return None
     uc = 0.5 * (u0 + u1)
     contact = back_project(camera, np.array([[uc, v1]]), pose)[0]
     if not np.all(np.isfinite(contact)):
-        return None
+        if position is None:
+            return None
+        contact = np.asarray(position, dtype=np.float64)
     cam = np.asarray(pose.position[:2])
     near = cam + NEAREST_SHARE * (contact - cam)
     X = (np.array([near[0], near[1], 0.0]) - np.asarray(pose.position)) @ pose.rotation()

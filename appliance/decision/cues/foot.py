@@ -32,7 +32,9 @@ class ObjectFoot:
         if motion is None:
             return None
         u0, v0, u1, _ = c.bbox
-        p = foot_probe((u0, v0, u1, c.foot_v), f.camera, f.pose, motion)
+        g = before.ground if before is not None else None
+        p = foot_probe((u0, v0, u1, c.foot_v), f.camera, f.pose, motion,
+                       None if g is None else g.position)
         if p is None:
             return None
         return Probe(points=p.points, geometry=p)

@@ -52,7 +52,8 @@ class GroundContact:
             g = ground_predict(g, f.dt, f.sensors, model, steady=f.t - g.t_update > 1.5 * f.dt)
         contact = x.meas.contact
         low = x.now.get("foot")
-        if contact is not None and low is not None and low.rows > 0 and x.track.cluster is not None:
+        if low is not None and low.rows > 0 and x.track.cluster is not None \
+                and x.track.confirmed and not any(x.meas.sides):
             # the object reaches below its cluster: its feet are lower (``object_foot.py``)
             contact = None if low.at_edge else lowered_contact(
                 x.track.cluster, f, model, contact, low.bottom)

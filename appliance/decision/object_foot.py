@@ -36,8 +36,11 @@ NEAREST_SHARE = 0.33  # the search ends where the road is this share of the cont
 EDGE_PX = 6.0        # px, rows this close to the image's bottom are not probed
 SEPARATION = 2.0     # flow std the two predictions must lie apart for a flow to say anything;
                      #   a flow follows the road within this many std
-ROAD_SHARE = 0.1     # and this share of the road's flow (road slope, body pitch)
+ROAD_SHARE = 0.1     # share of the road's flow added to a flow's std (road slope, body pitch)
+TEXTURE_FLOOR = 10.0  # (gray levels / px)^2, a window's texture from which its flow is as good
+                     #   as sigma_px: sensor noise alone gives about 1
 MAX_BLIND = 4        # rows in a row that say nothing end the search
+MIN_OBJECT = 2       # flows in a row that follow the object, at least, for it to belong to it
 
 
 @dataclass(frozen=True)
@@ -65,9 +68,9 @@ class FootProbe:
 @dataclass(frozen=True)
 class Foot:
     """What :func:`foot` found: the object's lowest row (px, an exclusive edge like a box's
-    ``v1``), how many probe rows below the box followed the object, and whether it reaches
-    the image's bottom (the image ended the search before the object ended: the feet are out
-    of sight)."""
+    ``v1``), how many probe rows below the box followed the object, and whether it may reach
+    the image's bottom (the search, cut short by the image, never saw the road below the
+    object: the feet may be out of sight)."""
 
     bottom: float
     rows: int
@@ -136,9 +139,35 @@ def foot_probe(box: tuple[float, float, float, float], camera: PinholeCamera, po
                      expansion=np.nan_to_num(expansion), step=step, v1=v1, cut=cut)
 
 
+def flow_precision(tensor: FloatArray | None, n: int, sigma_px: float, extra_px: FloatArray
+                   ) -> FloatArray:
+    """Per point, the inverse (n, 2, 2) px^-2 of its flow's covariance: ``sigma_px`` along the
+    best-textured direction of its window, more along a direction with less texture (the
+    aperture problem: beside a horizontal edge the flow along the edge is not measured), by
+    ``sqrt(max(l_max, TEXTURE_FLOOR) / l)`` for an eigenvalue l of its structure ``tensor``
+    (n, 3) ``[gx gx, gx gy, gy gy]``; ``extra_px`` (n,) px added in every direction. Isotropic
+    ``sigma_px`` without a tensor."""
+    if tensor is None:
+        var = np.full((n, 2), sigma_px ** 2)
+        vecs = np.broadcast_to(np.eye(2), (n, 2, 2))
+    else:
+        t = np.asarray(tensor, dtype=np.float64).reshape(n, 3)
+        M = np.stack([t[:, :2], t[:, 1:]], axis=1)
+        lam, vecs = np.linalg.eigh(M)
+        ref = np.maximum(lam[:, 1:], TEXTURE_FLOOR)
+        var = sigma_px ** 2 * ref / np.maximum(lam, 1e-6)
+    var = var + np.asarray(extra_px, dtype=np.float64)[:, None] ** 2
+    return np.einsum("nij,nj,nkj->nik", vecs, 1.0 / var, vecs)
+
+
+def mahalanobis(e: FloatArray, precision: FloatArray) -> FloatArray:
+    """``sqrt(e^T P e)`` of vectors ``e`` (..., 2) under precisions ``P`` (..., 2, 2)."""
+    return np.sqrt(np.maximum(np.einsum("...i,...ij,...j->...", e, precision, e), 0.0))
+
+
 def foot(p: FootProbe | None, flow_px: FloatArray | None, valid_px: NDArray[np.bool_] | None,
-         object_flow: FloatArray, object_at: FloatArray, sigma_px: float, max_gap: int = 2
-         ) -> Foot | None:
+         object_flow: FloatArray, object_at: FloatArray, sigma_px: float, max_gap: int = 2,
+         tensor: FloatArray | None = None) -> Foot | None:
     """The object's lowest row below the probe's box (module docstring); None without a
     measurement.
 
@@ -146,7 +175,8 @@ def foot(p: FootProbe | None, flow_px: FloatArray | None, valid_px: NDArray[np.b
     ``object_flow`` (2,) px: the object's own flow (current minus previous, the rotation's
     included) at ``object_at`` (2,) px; at x in a probe row, an object reaching down to that
     row flows ``object_flow + e (x - object_at)``, e the row's ``p.expansion``; ``sigma_px``:
-    a flow's std."""
+    a flow's std where its window is textured, ``tensor`` (K, 3): the windows' structure
+    tensors (:func:`flow_precision`)."""
     if p is None or flow_px is None or valid_px is None:
         return None
     n_rows, n_cols = p.grid.shape[:2]
@@ -154,29 +184,28 @@ def foot(p: FootProbe | None, flow_px: FloatArray | None, valid_px: NDArray[np.b
     valid = np.asarray(valid_px, dtype=bool).reshape(n_rows, n_cols) & p.in_image
     expected = np.asarray(object_flow) + p.expansion[:, None, None] * (
         p.grid - np.asarray(object_at))
-    sep = np.linalg.norm(expected - p.road, axis=-1)
-    road_len = np.linalg.norm(p.road, axis=-1)
-    tol = SEPARATION * sigma_px + ROAD_SHARE * road_len
+    precision = flow_precision(tensor, n_rows * n_cols, sigma_px,
+                               ROAD_SHARE * np.linalg.norm(p.road, axis=-1).ravel())
+    precision = precision.reshape(n_rows, n_cols, 2, 2)
     excess = flow - p.road
-    along = np.sum(excess * p.road, axis=-1) / np.maximum(road_len, 1e-9)
-    across = np.abs(excess[..., 0] * p.road[..., 1] - excess[..., 1] * p.road[..., 0]) \
-        / np.maximum(road_len, 1e-9)
-    telling = valid & (sep >= SEPARATION * sigma_px)
-    follows_road = telling & (np.hypot(along, across) <= tol)
+    unit = p.road / np.maximum(np.linalg.norm(p.road, axis=-1), 1e-9)[..., None]
+    across = excess - np.sum(excess * unit, axis=-1)[..., None] * unit
+    telling = valid & (mahalanobis(expected - p.road, precision) >= SEPARATION)
+    follows_road = telling & (mahalanobis(excess, precision) <= SEPARATION)
     # longer than the road's along its direction: something static standing nearer
-    static_nearer = (along > 0.0) & (across <= tol)
+    static_nearer = (np.sum(excess * unit, axis=-1) > 0.0) \
+        & (mahalanobis(across, precision) <= SEPARATION)
     follows_object = telling & ~follows_road & ~static_nearer
     bottom, found, gap, blind, ended = p.v1, 0, 0, 0, False
     for r in range(n_rows):
         n_obj, n_road = int(follows_object[r].sum()), int(follows_road[r].sum())
-        if n_obj == 0 and n_road == 0:
+        if n_road == 0 and n_obj < MIN_OBJECT:
             blind += 1
-            if blind > MAX_BLIND:
-                ended = True
+            if blind > MAX_BLIND:    # the road not seen: where the object ends is not known
                 break
             continue
         blind = 0
-        if n_obj >= 1 and 2 * n_obj >= n_road:
+        if n_obj >= MIN_OBJECT and 2 * n_obj >= n_road:
             bottom, found, gap = float(p.rows[r] + 0.5 * p.step), r + 1, 0
         else:
             gap += 1

@@ -77,8 +77,9 @@ def measure_from(prev: NDArray[np.uint8], cur: NDArray[np.uint8], points: FloatA
 def measure_points(prev: NDArray[np.uint8], cur: NDArray[np.uint8],
                    requests: Mapping[K, FloatArray], rotation: NDArray[np.floating],
                    camera: PinholeCamera, cfg: FlowConfig) -> dict[K, PointFlow]:
-    """The flow at each request's points (M, 2) px of ``cur``; ``rotation``: the refined
-    camera rotation since ``prev`` (Euler angles, rad, ``X_cur = R X_prev + t``)."""
+    """The flow at each request's points (M, 2) px of ``cur``, with their windows' structure
+    tensors where measured (zeros elsewhere); ``rotation``: the refined camera rotation since ``prev`` (Euler angles, rad,
+    ``X_cur = R X_prev + t``)."""
     keys = list(requests)
     pts = [np.asarray(requests[k], dtype=np.float64).reshape(-1, 2) for k in keys]
     out: dict[K, PointFlow] = {}
@@ -89,7 +90,11 @@ def measure_points(prev: NDArray[np.uint8], cur: NDArray[np.uint8],
     R = euler_to_matrix(np.asarray(rotation, dtype=np.float64))
     flow, valid = flow_into(prev, cur, allpts, cfg, lk_start(camera, allpts, R.T))
     start = 0
-    for k, n in zip(keys, sizes):
-        out[k] = PointFlow(flow[start:start + n], valid[start:start + n])
+    for k, n, p in zip(keys, sizes, pts):
+        ok = valid[start:start + n]
+        tensor = np.zeros((n, 3))
+        if np.any(ok):   # over the measured points only: a request's box stays its own
+            tensor[ok] = structure_tensor(cur, p[ok], cfg.window_px)
+        out[k] = PointFlow(flow[start:start + n], ok, tensor)
         start += n
     return out

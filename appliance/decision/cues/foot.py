@@ -50,4 +50,5 @@ class ObjectFoot:
         if np.count_nonzero(moving) < 2:
             return None
         return foot(p, flow.flow, flow.valid, np.median(c.flows[moving], axis=0),
-                    np.median(c.positions[moving], axis=0), x.frame.flow_std_px)
+                    np.median(c.positions[moving], axis=0), x.frame.flow_std_px,
+                    tensor=flow.tensor)

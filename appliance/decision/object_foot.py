@@ -29,7 +29,8 @@ from numpy.typing import NDArray
 from appliance.decision.ground_state import CameraPose, back_project
 from appliance.vision.geometry import FloatArray, PinholeCamera, in_image
 
-COLUMNS = 8          # probe columns across the box and a quarter of its width beside it
+COLUMNS = 8          # probe columns across the box and a quarter of its width beside it,
+MIN_SPAN_M = 0.6     #   over this much at the contact's depth at least
 ROWS = 16            # probe rows between the box's bottom and the end of the search
 MIN_STEP_PX = 1.5    # px between rows, at least
 NEAREST_SHARE = 0.33  # the search ends where the road is this share of the contact's range
@@ -37,7 +38,7 @@ EDGE_PX = 6.0        # px, rows this close to the image's bottom are not probed
 SEPARATION = 2.0     # flow std the two predictions must lie apart for a flow to say anything;
                      #   a flow follows the road within this many std
 ROAD_SHARE = 0.1     # share of the road's flow added to a flow's std (road slope, body pitch)
-TEXTURE_FLOOR = 10.0  # (gray levels / px)^2, a window's texture from which its flow is as good
+TEXTURE_FLOOR = 30.0  # (gray levels / px)^2, a window's texture from which its flow is as good
                      #   as sigma_px: sensor noise alone gives about 1
 MAX_BLIND = 4        # rows in a row that say nothing end the search
 MIN_OBJECT = 2       # flows in a row that follow the object, at least, for it to belong to it
@@ -99,7 +100,8 @@ def foot_probe(box: tuple[float, float, float, float], camera: PinholeCamera, po
                motion: tuple[FloatArray, FloatArray], position: FloatArray | None = None
                ) -> FootProbe | None:
     """The pixels whose flow :func:`foot` reads below ``box`` (u0, v0, u1, v1; ``v1`` the
-    cluster's foot): ``COLUMNS`` columns over the box widened by a quarter of its width a side,
+    cluster's foot): ``COLUMNS`` columns over the box widened by a quarter of its width a side
+    (``MIN_SPAN_M`` wide at least),
     ``ROWS`` rows from ``v1`` down to the row of the road at ``NEAREST_SHARE`` of the range at
     ``v1``; where ``v1`` is above the horizon (the particles on a head), of the range of
     ``position`` (2,) m, vehicle frame, the track's 3-D state. None without either, or when no
@@ -124,8 +126,12 @@ def foot_probe(box: tuple[float, float, float, float], camera: PinholeCamera, po
         return None
     step = max(MIN_STEP_PX, (v_end - v1) / ROWS)
     rows = np.arange(v1 + 0.5 * step, v_end, step)
-    w = u1 - u0
-    cols = np.linspace(u0 - 0.25 * w, u1 + 0.25 * w, COLUMNS)
+    depth = float((np.array([contact[0], contact[1], 0.0]) - np.asarray(pose.position))
+                  @ pose.rotation()[:, 2])
+    half = 0.75 * (u1 - u0)
+    if depth > 0.0:       # a sliver of an object (its edge) is probed across a pedestrian's width
+        half = max(half, 0.5 * MIN_SPAN_M * camera.fx / depth)
+    cols = np.linspace(uc - half, uc + half, COLUMNS)
     pts = np.column_stack([np.tile(cols, len(rows)), np.repeat(rows, len(cols))])
     ok = in_image(pts, camera.width, camera.height)
     road = road_flow(camera, pts, pose, motion)

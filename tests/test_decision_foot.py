@@ -113,7 +113,7 @@ def test_the_road_flow_is_the_flow_of_a_rendered_road_point(default_config: Conf
     assert np.all(error < 0.15 * np.linalg.norm(predicted, axis=1) + 0.2), error
 
 
-@pytest.mark.parametrize("depth_m", [6.0, 9.0, 12.0])
+@pytest.mark.parametrize("depth_m", [6.0, 9.0, 12.0, 15.0])
 def test_the_feet_are_found_below_a_cluster_on_the_hips(default_config: Config,
                                                         depth_m: float) -> None:
     prev, cur = pedestrian(depth_m)

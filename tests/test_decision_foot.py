@@ -88,7 +88,7 @@ def hips_box(depth_m: float, lateral_m: float) -> tuple[float, float, float, flo
 
 def found(prev: np.ndarray, cur: np.ndarray, box: tuple[float, float, float, float],
           object_flow: np.ndarray, cfg: Config) -> Foot:
-    p = foot_probe(box, CAM, POSE, MOTION)
+    p = foot_probe(box, CAM, POSE, MOTION, halo_px=0.5 * cfg.flow.window_px)
     assert p is not None
     f = measure_points(prev, cur, {0: p.points}, np.zeros(3), CAM, cfg.flow)[0]
     at = np.array([0.5 * (box[0] + box[2]), 0.5 * (box[1] + box[3])])
@@ -113,7 +113,7 @@ def test_the_road_flow_is_the_flow_of_a_rendered_road_point(default_config: Conf
     assert np.all(error < 0.15 * np.linalg.norm(predicted, axis=1) + 0.2), error
 
 
-@pytest.mark.parametrize("depth_m", [6.0, 9.0, 12.0, 15.0])
+@pytest.mark.parametrize("depth_m", [6.0, 9.0, 12.0])
 def test_the_feet_are_found_below_a_cluster_on_the_hips(default_config: Config,
                                                         depth_m: float) -> None:
     prev, cur = pedestrian(depth_m)

@@ -53,7 +53,10 @@ class FootProbe:
     minus previous, the camera's rotation included), ``expansion`` (rows,) the scale change per
     frame of an object standing on the road at each row (the camera's approach over the road's
     depth there: were the object's feet at that row, its image would grow so), ``step`` px
-    between rows and whether the image's bottom ``cut`` the search short."""
+    between rows, whether the image's bottom ``cut`` the search short, and the ``halo`` (px,
+    half the Lucas-Kanade window): a window centred that far below the object's bottom still
+    holds some of it, so the rows start that far below the box, and a row that follows the
+    object puts its bottom that much above the row (and half a row below it)."""
 
     points: FloatArray
     grid: FloatArray
@@ -64,6 +67,7 @@ class FootProbe:
     step: float
     v1: float
     cut: bool
+    halo: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -97,8 +101,8 @@ def road_flow(camera: PinholeCamera, uv: FloatArray, pose: CameraPose,
 
 
 def foot_probe(box: tuple[float, float, float, float], camera: PinholeCamera, pose: CameraPose,
-               motion: tuple[FloatArray, FloatArray], position: FloatArray | None = None
-               ) -> FootProbe | None:
+               motion: tuple[FloatArray, FloatArray], position: FloatArray | None = None,
+               halo_px: float = 0.0) -> FootProbe | None:
     """The pixels whose flow :func:`foot` reads below ``box`` (u0, v0, u1, v1; ``v1`` the
     cluster's foot): ``COLUMNS`` columns over the box widened by a quarter of its width a side
     (``MIN_SPAN_M`` wide at least),
@@ -125,7 +129,9 @@ def foot_probe(box: tuple[float, float, float, float], camera: PinholeCamera, po
     if v_end <= v1 + MIN_STEP_PX:
         return None
     step = max(MIN_STEP_PX, (v_end - v1) / ROWS)
-    rows = np.arange(v1 + 0.5 * step, v_end, step)
+    rows = np.arange(v1 + halo_px + 0.5 * step, v_end, step)
+    if rows.size == 0:
+        return None
     depth = float((np.array([contact[0], contact[1], 0.0]) - np.asarray(pose.position))
                   @ pose.rotation()[:, 2])
     half = 0.75 * (u1 - u0)
@@ -142,7 +148,8 @@ def foot_probe(box: tuple[float, float, float, float], camera: PinholeCamera, po
                      grid=pts.reshape(len(rows), len(cols), 2), rows=rows,
                      in_image=ok.reshape(len(rows), len(cols)),
                      road=np.where(ok[:, None], road, 0.0).reshape(len(rows), len(cols), 2),
-                     expansion=np.nan_to_num(expansion), step=step, v1=v1, cut=cut)
+                     expansion=np.nan_to_num(expansion), step=step, v1=v1, cut=cut,
+                     halo=halo_px)
 
 
 def flow_precision(tensor: FloatArray | None, n: int, sigma_px: float, extra_px: FloatArray
@@ -212,7 +219,7 @@ def foot(p: FootProbe | None, flow_px: FloatArray | None, valid_px: NDArray[np.b
             continue
         blind = 0
         if n_obj >= MIN_OBJECT and 2 * n_obj >= n_road:
-            bottom, found, gap = float(p.rows[r] + 0.5 * p.step), r + 1, 0
+            bottom, found, gap = float(p.rows[r] + 0.5 * p.step - p.halo), r + 1, 0
         else:
             gap += 1
             if gap >= max_gap:

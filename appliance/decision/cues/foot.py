@@ -34,7 +34,7 @@ class ObjectFoot:
         u0, v0, u1, _ = c.bbox
         g = before.ground if before is not None else None
         p = foot_probe((u0, v0, u1, c.foot_v), f.camera, f.pose, motion,
-                       None if g is None else g.position)
+                       None if g is None else g.position, f.halo_px)
         if p is None:
             return None
         return Probe(points=p.points, geometry=p)

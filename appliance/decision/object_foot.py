@@ -11,11 +11,12 @@ downward from its bottom to where the road is a third as far; vision measures th
 (current frame back to the previous one, forward-backward checked). Each flow is compared with
 two predictions: the object's own (the median flow of its moving particles, with its
 expansion) and the road's at that pixel (a road point there, moved by the camera's motion).
-:func:`foot` walks down the rows: a row where flows follow the object (at least half as many
-as follow the road: between two legs the road shows) belongs to it; the object ends after
-``max_gap`` rows whose flows follow the road and not the object. Rows where the two
-predictions lie too close to tell apart (far away, or an object moving like the road) or
-where nothing was measured neither extend nor stop it, up to ``MAX_BLIND`` of them in a row.
+:func:`foot` walks down the rows, each flow weighed in its window's texture: a row where at
+least ``MIN_OBJECT`` flows follow neither the road nor a static surface nearer than it, and at
+least half as many as follow the road (between two legs the road shows), belongs to it; the
+object ends after ``max_gap`` rows in a row that do not. Rows where the two predictions lie
+too close to tell apart (far away, or an object moving like the road) or where nothing was
+measured neither extend nor stop it, up to ``MAX_BLIND`` of them in a row.
 Pure: decision never sees the images.
 """
 

@@ -36,11 +36,12 @@ BODY = _texture(2, 1.2)      #   about one per image px both ways; 60 per m of t
 
 
 def render(depth_m: float, lateral_m: float, travelled_m: float, width_m: float = 0.6,
-           height_m: float = 1.7, legs: bool = False) -> np.ndarray:
+           height_m: float = 1.7, legs: bool = False, swing_m: float = 0.0) -> np.ndarray:
     """The camera's image: the road (texture fixed on the ground, the camera ``travelled_m``
     along it) and an upright object ``width_m`` wide and ``height_m`` tall standing on it,
     ``depth_m`` ahead and ``lateral_m`` right (camera frame). With ``legs`` its lower half is
-    two legs with road between them."""
+    two legs with road between them; ``swing_m`` moves its left leg that far to the left of
+    where the body carries it (a leg swinging forward while the body walks on)."""
     u, v = np.meshgrid(np.arange(CAM.width, dtype=np.float64),
                        np.arange(CAM.height, dtype=np.float64))
     rx, ry = (u - CAM.cx) / CAM.fx, (v - CAM.cy) / CAM.fy
@@ -53,6 +54,9 @@ def render(depth_m: float, lateral_m: float, travelled_m: float, width_m: float 
     img = np.where(np.isfinite(z), img, 160.0)
     # the object: its plane at depth_m, texture fixed on it
     ox, oy = rx * depth_m - lateral_m, ry * depth_m
+    if swing_m:
+        left_leg = (oy > HEIGHT_M - 0.5 * height_m) & (ox + swing_m < 0.0) & (ox > -0.5 * width_m - swing_m)
+        ox = np.where(left_leg, ox + swing_m, ox)
     inside = (np.abs(ox) <= 0.5 * width_m) & (oy <= HEIGHT_M) & (oy >= HEIGHT_M - height_m)
     if legs:
         gap = (np.abs(ox) < 0.12) & (oy > HEIGHT_M - 0.5 * height_m)
@@ -67,13 +71,13 @@ def feet_row(depth_m: float) -> float:
     return CAM.cy + CAM.fy * HEIGHT_M / depth_m
 
 
-def pedestrian(depth_m: float = 12.0, lateral_m: float = 1.2, legs: bool = False
-               ) -> tuple[np.ndarray, np.ndarray]:
+def pedestrian(depth_m: float = 12.0, lateral_m: float = 1.2, legs: bool = False,
+               swing_m: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Previous and current frame of a pedestrian on a collision course: it keeps its bearing
-    while the camera drives TRAVEL_M nearer."""
+    while the camera drives TRAVEL_M nearer (and its left leg swings ``swing_m`` ahead)."""
     prev_depth = depth_m + TRAVEL_M
     prev = render(prev_depth, lateral_m * prev_depth / depth_m, 0.0, legs=legs)
-    cur = render(depth_m, lateral_m, TRAVEL_M, legs=legs)
+    cur = render(depth_m, lateral_m, TRAVEL_M, legs=legs, swing_m=swing_m)
     return prev, cur
 
 
@@ -145,6 +149,22 @@ def test_between_the_legs_the_road_does_not_end_the_object(default_config: Confi
     out = found(prev, cur, box, expansion_flow(at, depth_m), default_config)
     truth = feet_row(depth_m)
     assert abs(out.bottom - truth) <= 0.1 * (truth - CAM.cy) + 1.0, (out, truth)
+
+
+def test_a_swinging_leg_reaches_down_to_the_feet(default_config: Config) -> None:
+    """18 m ahead the body's own flow at its feet lies within two flow std of the road's, so the
+    body says nothing there; the leg that swings ahead of it (0.06 m per frame: walking at
+    1.4 m/s, 25 frames/s) flows far from the road's, and the object reaches down near the feet.
+    The contact read from the cluster's own bottom is 86 % too far; from the foot, less than
+    25 % (the last row is placed half a window above the leg's end, as for every object)."""
+    depth_m = 18.0
+    prev, cur = pedestrian(depth_m, legs=True, swing_m=0.06)
+    box = hips_box(depth_m, 1.2)
+    at = np.array([0.5 * (box[0] + box[2]), 0.5 * (box[1] + box[3])])
+    out = found(prev, cur, box, expansion_flow(at, depth_m), default_config)
+    assert out.rows > 0
+    assert out.bottom <= feet_row(depth_m) + 1.0
+    assert CAM.fy * HEIGHT_M / (out.bottom - CAM.cy) <= 1.25 * depth_m, (out, feet_row(depth_m))
 
 
 def test_a_cluster_at_the_feet_stays_where_it_is(default_config: Config) -> None:

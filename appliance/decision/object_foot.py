@@ -11,12 +11,16 @@ downward from its bottom to where the road is a third as far; vision measures th
 (current frame back to the previous one, forward-backward checked). Each flow is compared with
 two predictions: the object's own (the median flow of its moving particles, with its
 expansion) and the road's at that pixel (a road point there, moved by the camera's motion).
-:func:`foot` walks down the rows, each flow weighed in its window's texture: a row where at
-least ``MIN_OBJECT`` flows follow neither the road nor a static surface nearer than it, and at
-least half as many as follow the road (between two legs the road shows), belongs to it; the
-object ends after ``max_gap`` rows in a row that do not. Rows where the two predictions lie
-too close to tell apart (far away, or an object moving like the road) or where nothing was
-measured neither extend nor stop it, up to ``MAX_BLIND`` of them in a row.
+:func:`foot` walks down the rows, each flow weighed in its window's texture. A flow follows the
+object where it follows neither the road nor a static surface nearer than it, and either the
+object's own prediction lies apart from the road's or the flow itself lies ``APART`` std from
+the road's (a swinging leg flows like neither the body nor the road). A row belongs to the
+object where at least ``MIN_OBJECT`` flows follow it and at least half as many as follow the
+road (between two legs the road shows), or ``MIN_OBJECT`` of them lie ``APART`` from the
+road's; the object ends after ``max_gap`` rows in a row that do not. Rows where
+the two predictions lie too close to tell apart (far away, or an object moving like the road),
+where nothing was measured, or with a single flow apart from the road's, neither extend nor
+stop it, up to ``MAX_BLIND`` of them in a row.
 Pure: decision never sees the images.
 """
 
@@ -43,6 +47,8 @@ TEXTURE_FLOOR = 30.0  # (gray levels / px)^2, a window's texture from which its 
                      #   as sigma_px: sensor noise alone gives about 1
 MAX_BLIND = 4        # rows in a row that say nothing end the search
 MIN_OBJECT = 2       # flows in a row that follow the object, at least, for it to belong to it
+APART = 3.0          # flow std from the road's flow: a flow this far from it is not the road's,
+                     #   whatever the object's own flow predicts (a swinging leg's is not the body's)
 
 
 @dataclass(frozen=True)
@@ -209,19 +215,21 @@ def foot(p: FootProbe | None, flow_px: FloatArray | None, valid_px: NDArray[np.b
     # longer than the road's along its direction: something static standing nearer
     static_nearer = (np.sum(excess * unit, axis=-1) > 0.0) \
         & (mahalanobis(across, precision) <= SEPARATION)
-    follows_object = telling & ~follows_road & ~static_nearer
+    apart = valid & (mahalanobis(excess, precision) >= APART)
+    follows_object = (telling | apart) & ~follows_road & ~static_nearer
+    strong = follows_object & apart
     bottom, found, gap, blind, ended = p.v1, 0, 0, 0, False
     for r in range(n_rows):
         n_obj, n_road = int(follows_object[r].sum()), int(follows_road[r].sum())
-        if n_road == 0 and n_obj < MIN_OBJECT:
+        n_strong = int(strong[r].sum())
+        if n_obj >= MIN_OBJECT and (2 * n_obj >= n_road or n_strong >= MIN_OBJECT):
+            bottom, found, gap, blind = float(p.rows[r] + 0.5 * p.step - p.halo), r + 1, 0, 0
+        elif (n_road == 0 and n_obj < MIN_OBJECT) or n_strong > 0:
             blind += 1
             if blind > MAX_BLIND:    # the road not seen: where the object ends is not known
                 break
-            continue
-        blind = 0
-        if n_obj >= MIN_OBJECT and 2 * n_obj >= n_road:
-            bottom, found, gap = float(p.rows[r] + 0.5 * p.step - p.halo), r + 1, 0
         else:
+            blind = 0
             gap += 1
             if gap >= max_gap:
                 ended = True

@@ -208,14 +208,15 @@ def foot(p: FootProbe | None, flow_px: FloatArray | None, valid_px: NDArray[np.b
                                ROAD_SHARE * np.linalg.norm(p.road, axis=-1).ravel())
     precision = precision.reshape(n_rows, n_cols, 2, 2)
     excess = flow - p.road
+    off_road = mahalanobis(excess, precision)      # std from the road's flow
     unit = p.road / np.maximum(np.linalg.norm(p.road, axis=-1), 1e-9)[..., None]
-    across = excess - np.sum(excess * unit, axis=-1)[..., None] * unit
+    along = np.sum(excess * unit, axis=-1)
+    across = excess - along[..., None] * unit
     telling = valid & (mahalanobis(expected - p.road, precision) >= SEPARATION)
-    follows_road = telling & (mahalanobis(excess, precision) <= SEPARATION)
+    follows_road = telling & (off_road <= SEPARATION)
     # longer than the road's along its direction: something static standing nearer
-    static_nearer = (np.sum(excess * unit, axis=-1) > 0.0) \
-        & (mahalanobis(across, precision) <= SEPARATION)
-    apart = valid & (mahalanobis(excess, precision) >= APART)
+    static_nearer = (along > 0.0) & (mahalanobis(across, precision) <= SEPARATION)
+    apart = valid & (off_road >= APART)
     follows_object = (telling | apart) & ~follows_road & ~static_nearer
     strong = follows_object & apart
     bottom, found, gap, blind, ended = p.v1, 0, 0, 0, False

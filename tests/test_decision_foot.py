@@ -55,7 +55,8 @@ def render(depth_m: float, lateral_m: float, travelled_m: float, width_m: float 
     # the object: its plane at depth_m, texture fixed on it
     ox, oy = rx * depth_m - lateral_m, ry * depth_m
     if swing_m:
-        left_leg = (oy > HEIGHT_M - 0.5 * height_m) & (ox + swing_m < 0.0) & (ox > -0.5 * width_m - swing_m)
+        left_leg = (oy > HEIGHT_M - 0.5 * height_m) & (ox + swing_m < 0.0) \
+            & (ox > -0.5 * width_m - swing_m)
         ox = np.where(left_leg, ox + swing_m, ox)
     inside = (np.abs(ox) <= 0.5 * width_m) & (oy <= HEIGHT_M) & (oy >= HEIGHT_M - height_m)
     if legs:

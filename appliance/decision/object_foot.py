@@ -48,7 +48,8 @@ TEXTURE_FLOOR = 30.0  # (gray levels / px)^2, a window's texture from which its 
 MAX_BLIND = 4        # rows in a row that say nothing end the search
 MIN_OBJECT = 2       # flows in a row that follow the object, at least, for it to belong to it
 APART = 3.0          # flow std from the road's flow: a flow this far from it is not the road's,
-                     #   whatever the object's own flow predicts (a swinging leg's is not the body's)
+                     #   whatever the object's own flow predicts (a swinging leg's is not the
+                     #   body's)
 
 
 @dataclass(frozen=True)

@@ -19,12 +19,13 @@ run and one per scenario over its seeds, the pooled figures, and a table pooled 
 
 Options: ``--seeds N`` (3) from ``--first-seed S`` (0), ``--scenarios a,b`` (names of either
 world), ``--keep DIR`` (recordings and runs kept in ``DIR/<world>/recordings`` and
-``DIR/<world>/runs``; kept recordings are reused, and kept runs too when the code and
-configuration are the same), ``--jobs N`` (Ray workers and generator processes; the machine
-is shared, default 1), ``--config FILE`` (passed to every replay), ``--markdown FILE`` (the
-tables as a Markdown page, each with the command that reproduces it), ``--ks-world PATH``,
-``--ks-python PATH`` (default: this interpreter when it has the world's packages, else a
-venv created under ``~/.cache/collision-warning``).
+``DIR/<world>/runs``; kept recordings are reused while the generator that made them is
+unchanged (``DIR/<world>/generated.json``, ``benchmarks/_kept.py``), and kept runs too when
+the code and configuration are the same), ``--jobs N`` (Ray workers and generator processes;
+the machine is shared, default 1), ``--config FILE`` (passed to every replay), ``--markdown
+FILE`` (the tables as a Markdown page, each with the command that reproduces it),
+``--ks-world PATH``, ``--ks-python PATH`` (default: this interpreter when it has the world's
+packages, else a venv created under ``~/.cache/collision-warning``).
 """
 
 from __future__ import annotations
@@ -47,6 +48,7 @@ from appliance.config import load_config
 from appliance.errors import ApplianceError
 from appliance.evaluation.report import print_table, table_row
 from appliance.evaluation import pooled
+from benchmarks import _kept
 from benchmarks import _kitti_street as ks
 
 CLI = [sys.executable, "-m", "appliance"]
@@ -66,8 +68,19 @@ class World:
     errors: list[str] = field(default_factory=list)
 
     @property
+    def dir(self) -> Path:
+        return self.root / self.name
+
+    @property
     def rec_dir(self) -> Path:
-        return self.root / self.name / "recordings"
+        return self.dir / "recordings"
+
+    def drop_stale(self, digest: str) -> None:
+        """Remove kept recordings another generator made (``_kept.py``), so they are made anew."""
+        stale = _kept.drop_stale(self.dir, self.recordings, digest)
+        if stale:
+            print(f"{self.name}: {len(stale)} kept recordings come from another generator "
+                  f"(or none is named): made again", flush=True)
 
     @property
     def run_dir(self) -> Path:
@@ -84,15 +97,17 @@ def own_scenarios() -> list[str]:
 
 
 def simulate_own(world: World, seeds: range, jobs: int) -> None:
-    """``collision-warning simulate`` for every wanted recording not kept yet."""
+    """``collision-warning simulate`` for every wanted recording not kept yet (or kept from
+    another simulator)."""
     world.rec_dir.mkdir(parents=True, exist_ok=True)
+    world.recordings = {f"{name}-seed{seed}": (name, seed)
+                        for name in world.scenarios for seed in seeds}
+    digest = _kept.own_generator()
+    world.drop_stale(digest)
     todo = []
-    for name in world.scenarios:
-        for seed in seeds:
-            rec = f"{name}-seed{seed}"
-            world.recordings[rec] = (name, seed)
-            if not (world.rec_dir / rec / "truth.json").exists():
-                todo.append((name, seed, world.rec_dir / rec))
+    for rec, (name, seed) in world.recordings.items():
+        if not (world.rec_dir / rec / "truth.json").exists():
+            todo.append((name, seed, world.rec_dir / rec))
 
     def one(job: tuple[str, int, Path]) -> str | None:
         name, seed, rec = job
@@ -107,13 +122,17 @@ def simulate_own(world: World, seeds: range, jobs: int) -> None:
         print(f"own: simulating {len(todo)} recordings", flush=True)
     with ThreadPoolExecutor(max_workers=max(jobs, 1)) as pool:
         world.errors += [e for e in pool.map(one, todo) if e]
+    _kept.record(world.dir, world.recordings, digest)
 
 
 def generate_kitti(world: World, seeds: range, jobs: int, python: str, ks_world: Path) -> None:
     world.rec_dir.mkdir(parents=True, exist_ok=True)
     wanted = [(n, s) for n in world.scenarios for s in seeds]
     world.recordings = {ks.recording_name(n, s): (n, s) for n, s in wanted}
+    digest = _kept.kitti_generator(ks_world, [ks.STANDING])
+    world.drop_stale(digest)
     world.errors += ks.generate(python, ks_world, world.rec_dir, wanted, jobs)
+    _kept.record(world.dir, world.recordings, digest)
 
 
 def replay_all(worlds: list[World], config: str | None, jobs: int) -> dict[str, JobResult]:

@@ -322,6 +322,35 @@ def test_evidence_accumulates_on_the_road_and_an_obstacle_keeps_its_id(
     assert state.obstacle is not None and state.obstacle.closing == pytest.approx(1.0, abs=0.25)
 
 
+def test_a_narrow_obstacle_is_placed_at_its_face_not_at_the_evidence_peak(
+        default_config: Config) -> None:
+    """A pedestrian-wide post (0.5 m) standing in the lane: the evidence against the road peaks
+    beyond it (a farther hypothesis tests its higher rows, where the road behind is farther);
+    the obstacle's depth is where its points' parallax puts it."""
+    cfg = default_config
+    state = init_standing(cfg.obstacle)
+    D = ranges(cfg.obstacle)
+    post = 22.0
+    placed = []
+    for k in range(30):                     # to 7 m
+        p = probe(cfg)
+        z = scene_depth(cfg, p, (post, -0.25, 0.25))
+        motion = (np.eye(3), np.array([0.0, 0.0, -SPEED * DT]))
+        state, _ = standing_step(state, p, flows(p, z, 0.08, seed=k), np.zeros(len(p.points)),
+                                 k * DT, DT, SPEED, motion, CAM, cfg.mount,
+                                 cfg.warning.corridor_margin_m, 1, cfg.obstacle)
+        face = nearest_face(state.evidence[0], D, cfg.obstacle.evidence_threshold)
+        if state.obstacle is not None and state.obstacle.seen == k * DT and face is not None:
+            placed.append((state.obstacle.depth_m, face[1], post))
+        post -= SPEED * DT
+    assert len(placed) >= 10
+    # the evidence's peak lies beyond the post (the error this corrects) ...
+    assert np.median([peak / d for _, peak, d in placed]) > 1.1
+    # ... the obstacle stands where the post does
+    assert np.median([abs(got - d) / d for got, _, d in placed]) < 0.05
+    assert all(abs(got - d) <= 0.12 * d for got, _, d in placed)
+
+
 def closing_flows(cfg: Config, p: CorridorProbe, depth: float, rate: float, noise_px: float,
                   seed: int = 0, width: float = 1.8) -> PointFlow:
     """The flow of a car's rear ``depth`` m ahead (``width`` m wide, 1.5 m tall) closing at

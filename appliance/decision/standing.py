@@ -21,10 +21,12 @@ nothing: it is a mover, and the movers' tracks warn of it.
 
 The evidence of a hypothesis is summed over frames, anchored to the road (a standing object
 comes nearer by the distance driven), with a fading memory (``obstacle.memory_s``). Where a
-corridor cell's evidence reaches ``obstacle.evidence_threshold``, something stands there: its
-distance is the nearest such cell's peak along the path, its extent the cells beside it that
-carry half of it (:func:`nearest_face`); the roadside test (:func:`joins_roadside`) and its
-closing (``Obstacle.closing``) tell it from the outside of a bend. An obstacle is static: its
+corridor cell's evidence reaches ``obstacle.evidence_threshold``, something stands there: the
+nearest such cell's peak along the path finds it, its extent the cells beside it that carry
+half of it (:func:`nearest_face`), and its depth is fit to the parallax of the points that peak
+tests (:func:`face_depth`: the peak lies beyond the face); the roadside test
+(:func:`joins_roadside`) and its closing (``Obstacle.closing``) tell it from the outside of a
+bend. An obstacle is static: its
 time to collision and whether it is in the path come from ``threat.predict_path`` for an
 object that does not move, the ego driving its arc and braking as its CAN speed says (a driver
 braking to a stop short of it is not warned).
@@ -97,6 +99,8 @@ TOP_M = 1.0                # m, the top of an obstacle's reported box (the probe
 RATES = (1.0, 0.7, 0.5, 0.35, 0.25)  # the closing speeds (shares of the ego speed) hypothesised:
                            #   1, it stands; less, it drives ahead on the path, slower
 CLOSING_WIDTH_M = 1.2      # m, what closes slower than the ego is a vehicle at least this wide
+FIT_RATIO = 1.01           # ratio of successive depths a face's depth is fit over
+MIN_FACE_POINTS = 5        # points standing up in a face that measure its depth
 
 
 def compose(motions: tuple[Motion | None, ...], now: Motion, frames: int) -> tuple[Motion, int]:
@@ -145,7 +149,8 @@ class Obstacle:
     vehicle-frame lateral extent it was seen over (y0, y1 m, at that depth), its evidence
     (nats), when it was first and last seen (s), whether it was found to continue the roadside,
     and its recent depths against the distance the car drove, each with whether that frame's
-    face joined the roadside (``history``: (driven m, apparent depth m, joined), oldest first,
+    face joined the roadside (``history``: (driven m, apparent depth m where the evidence
+    peaked, joined), oldest first,
     at most ``HISTORY_S`` back). ``roadside`` is decided once it has been seen for ``HISTORY_S`` and
     over ``MIN_HISTORY_M`` of driving, by the majority of those frames (:func:`joins_roadside`
     flickers where an object's edge meets the background), and kept for as long as it is
@@ -333,20 +338,32 @@ def corridor_probe(pose: CameraPose, camera: PinholeCamera, ego: EgoMotion,
                          origin=np.asarray(pose.position, dtype=np.float64), R=R, t_m=t_m)
 
 
-def hypothesis_evidence(p: CorridorProbe, flow: PointFlow | None, mover_p: FloatArray,
-                        camera: PinholeCamera, rates: tuple[float, ...] = (1.0,)) -> FloatArray:
-    """This frame's evidence (len(rates), bins, cells), nats: for each hypothesis (an upright
-    surface at a distance, in a cell, closing at a share of the ego speed), the summed log-likelihood ratio against the road of the points
-    whose ray meets that surface between ``SURFACE_M`` above the road, each point's residuals
-    truncated at ``RESIDUAL_CLIP`` std (no single point decides). Points not measured or moving
-    independently (``mover_p``: p(x) at the points, or 1 on a mover) say nothing.
+@dataclass(frozen=True)
+class Parallax:
+    """This frame's usable corridor points (those measured, not moving independently) and
+    what their flow says: ``rays`` (M, 3) vehicle frame per unit camera depth; ``along`` (M,)
+    px, the translational flow along the static direction g; ``g_abs`` (M,) |g| (px per unit
+    inverse depth); ``sigma`` (M,) px, the flow's error along g; ``w_road`` (M,) the road's
+    inverse depth at each; ``share`` (M,) each pixel's share of its window."""
+
+    rays: FloatArray
+    along: FloatArray
+    g_abs: FloatArray
+    sigma: FloatArray
+    w_road: FloatArray
+    share: FloatArray
+
+
+def parallax(p: CorridorProbe, flow: PointFlow | None, mover_p: FloatArray,
+             camera: PinholeCamera) -> Parallax | None:
+    """The corridor points' flow along the static direction and its error (None: fewer than
+    ``MIN_POINTS`` measured). Points not measured or moving independently (``mover_p``: p(x)
+    at the points, or 1 on a mover; or flowing ``CROSS_SIGMAS`` std across g) are left out.
 
     The flow's error is measured on the frame itself (:func:`flow_error`), plus
     ``RELATIVE_ERROR`` of the road's flow at the point."""
-    D, offsets = p.ranges, p.offsets
-    out = np.zeros((len(rates), len(D), len(offsets)))
     if flow is None or len(p.points) == 0:
-        return out
+        return None
     x_cur = camera.undistort(p.points)
     x_prev = camera.undistort(p.points - flow.flow)
     f_t = x_cur - derotate(camera.K, p.R, x_prev)           # translational flow
@@ -358,7 +375,7 @@ def hypothesis_evidence(p: CorridorProbe, flow: PointFlow | None, mover_p: Float
     measured = flow.valid & np.all(np.isfinite(f_t), axis=1) & np.all(np.isfinite(normal), axis=1) \
         & (mover_p < MOVER_PROBABILITY)
     if np.count_nonzero(measured) < MIN_POINTS:
-        return out
+        return None
     f_t = f_t - rotation_residual(f_t[measured], normal[measured])
     along = np.einsum("ij,ij->i", f_t, g)                   # |g| times the flow along g
     across = np.abs(np.einsum("ij,ij->i", f_t, normal))
@@ -366,22 +383,43 @@ def hypothesis_evidence(p: CorridorProbe, flow: PointFlow | None, mover_p: Float
                         (np.sqrt(g2) * p.w_road)[measured])
     sigma2 = (sigma0 ** 2 + (RELATIVE_ERROR * p.w_road) ** 2 * g2) \
         * aperture(flow.tensor, g, np.sqrt(g2), measured)
-    w_road = p.w_road
     ok = measured & (across < CROSS_SIGMAS * np.sqrt(sigma2)) & (p.rays[:, 0] > 1e-6)
-    rays, w_road = p.rays[ok], w_road[ok]
-    along, g2, sigma2, share = along[ok], g2[ok], sigma2[ok], p.share[ok]
+    return Parallax(rays=p.rays[ok], along=along[ok] / np.sqrt(g2[ok]), g_abs=np.sqrt(g2[ok]),
+                    sigma=np.sqrt(sigma2[ok]), w_road=p.w_road[ok], share=p.share[ok])
+
+
+def cell_of(lateral: FloatArray, offsets: FloatArray) -> FloatArray:
+    """The corridor cell (float, floor it) of each lateral offset from the path (m)."""
+    width = offsets[-1] - offsets[0] + (offsets[1] - offsets[0] if len(offsets) > 1 else 0.0)
+    return np.floor((lateral - (offsets[0] - 0.5 * width / len(offsets))) * len(offsets) / width)
+
+
+def hypothesis_evidence(p: CorridorProbe, flow: PointFlow | None, mover_p: FloatArray,
+                        camera: PinholeCamera, rates: tuple[float, ...] = (1.0,),
+                        pts: Parallax | None = None) -> FloatArray:
+    """This frame's evidence (len(rates), bins, cells), nats: for each hypothesis (an upright
+    surface at a distance, in a cell, closing at a share of the ego speed), the summed
+    log-likelihood ratio against the road of the points (:func:`parallax`; ``pts`` where
+    already computed) whose ray meets that surface between ``SURFACE_M`` above the road, each
+    point's residuals truncated at ``RESIDUAL_CLIP`` std (no single point decides)."""
+    D, offsets = p.ranges, p.offsets
+    out = np.zeros((len(rates), len(D), len(offsets)))
+    if pts is None:
+        pts = parallax(p, flow, mover_p, camera)
+    if pts is None:
+        return out
+    rays, w_road, share = pts.rays, pts.w_road, pts.share
     # where each ray meets each hypothesis' surface (points x hypotheses)
     lam = D[None, :] / rays[:, :1]                          # camera depth there
     height = p.origin[2] + lam * rays[:, 2:3]
     x = p.origin[0] + lam * rays[:, :1]
     lateral = p.origin[1] + lam * rays[:, 1:2] - path_y(x, p.curvature)
-    width = offsets[-1] - offsets[0] + (offsets[1] - offsets[0] if len(offsets) > 1 else 0.0)
-    cell = np.floor((lateral - (offsets[0] - 0.5 * width / len(offsets))) * len(offsets) / width)
+    cell = cell_of(lateral, offsets)
     on = (height >= SURFACE_M[0]) & (height <= SURFACE_M[1]) & (cell >= 0) \
         & (cell < len(offsets))
-    g_abs = np.sqrt(g2)[:, None]
-    a = (along / np.sqrt(g2))[:, None]                      # the flow along g, px
-    sigma = np.sqrt(sigma2)[:, None]
+    g_abs = pts.g_abs[:, None]
+    a = pts.along[:, None]                                  # the flow along g, px
+    sigma = pts.sigma[:, None]
     r_road = np.minimum(((a - g_abs * w_road[:, None]) / sigma) ** 2, RESIDUAL_CLIP ** 2)
     i, k = np.nonzero(on)
     cells = cell[i, k].astype(np.int64)
@@ -399,6 +437,39 @@ def hypothesis_evidence(p: CorridorProbe, flow: PointFlow | None, mover_p: Float
         ok = np.isfinite(llr)
         np.add.at(out[j], (k[ok], cells[ok]), llr[ok])
     return out
+
+
+def face_depth(pts: Parallax | None, p: CorridorProbe, c0: int, c1: int, seen: float,
+               near: float) -> float | None:
+    """The depth (m ahead of the camera) of a face standing in cells ``c0..c1``, found where
+    the evidence peaked (``seen`` m), from its points' own parallax: the points whose ray
+    meets the surface at ``seen`` in those cells between ``SURFACE_M`` above the road see the
+    face or, beside a narrow one, the road; the depth between ``near`` and ``seen`` that
+    explains them best, each point a surface point there or a road point (an even mixture,
+    residuals truncated at ``RESIDUAL_CLIP`` std). None with fewer than ``MIN_FACE_POINTS``.
+
+    The evidence's peak along the path is not the depth: a hypothesis farther than the face
+    tests rows where the road behind it is farther, so the face's flow stands out from the road
+    there by more, and the evidence against the road peaks beyond the face."""
+    if pts is None or len(pts.along) == 0:
+        return None
+    lam = seen / pts.rays[:, 0]
+    height = p.origin[2] + lam * pts.rays[:, 2]
+    x = p.origin[0] + seen
+    lateral = p.origin[1] + lam * pts.rays[:, 1] - path_y(np.full(len(lam), x), p.curvature)
+    cell = cell_of(lateral, p.offsets)
+    on = (height >= SURFACE_M[0]) & (height <= SURFACE_M[1]) & (cell >= c0) & (cell <= c1)
+    if np.count_nonzero(on) < MIN_FACE_POINTS:
+        return None
+    rays, a, g, sigma = pts.rays[on], pts.along[on], pts.g_abs[on], pts.sigma[on]
+    r_road = np.minimum(((a - g * pts.w_road[on]) / sigma) ** 2, RESIDUAL_CLIP ** 2)
+    depths = near * FIT_RATIO ** np.arange(int(math.log(seen / near) / math.log(FIT_RATIO)) + 2)
+    lam_d = depths[None, :] / rays[:, :1]                   # points x depths
+    w = 1.0 / (lam_d - p.t_m[2])
+    r_hyp = np.minimum(((a[:, None] - g[:, None] * w) / sigma[:, None]) ** 2, RESIDUAL_CLIP ** 2)
+    share = pts.share[on][:, None]
+    loglik = (share * np.logaddexp(-0.5 * r_hyp, -0.5 * r_road[:, None])).sum(axis=0)
+    return float(depths[int(np.argmax(loglik))])
 
 
 def aperture(tensor: FloatArray | None, g: FloatArray, g_abs: FloatArray,
@@ -533,8 +604,9 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
     keep = math.exp(-max(dt, 0.0) / cfg.memory_s) if cfg.memory_s > 0.0 else 0.0
     evidence = np.stack([carried(layer, D, rate * travel, keep)
                          for layer, rate in zip(state.evidence, RATES)])
+    pts = parallax(p, flow, mover_p, camera) if p is not None else None
     if p is not None:
-        evidence = evidence + hypothesis_evidence(p, flow, mover_p, camera, RATES)
+        evidence = evidence + hypothesis_evidence(p, flow, mover_p, camera, RATES, pts)
     obstacle = state.obstacle
     if obstacle is not None and t - obstacle.seen > LOST_S:
         obstacle = None
@@ -551,6 +623,13 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
                 evidence[fj[1], fj[0][0], fj[0][2]:fj[0][3] + 1].max()))
     if face is not None:
         k, depth, c0, c1 = face
+        # where it stands: its points' own parallax (the evidence peaks beyond the face); where
+        # too few measure it this frame, where it stood, the distance driven nearer
+        face_m = face_depth(pts, p, c0, c1, depth, 0.5 * depth) \
+            if layer == 0 and p is not None else None
+        if face_m is None:
+            face_m = obstacle.depth_m - travel if obstacle is not None and obstacle.rate == 1.0 \
+                and layer == 0 else depth
         layered = evidence[layer]
         offsets = cell_offsets(width)
         half = 0.5 * cell
@@ -567,7 +646,7 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
         roadside = obstacle is not None and obstacle.roadside
         if t - since >= HISTORY_S and history[-1][0] - history[0][0] >= MIN_HISTORY_M:
             roadside = roadside or 2 * sum(h[2] for h in history) > len(history)
-        obstacle = Obstacle(id=ident, depth_m=depth, lateral_m=lateral,
+        obstacle = Obstacle(id=ident, depth_m=face_m, lateral_m=lateral,
                             evidence=float(layered[k, c0:c1 + 1].max()), since=since, seen=t,
                             roadside=roadside, history=history, stopped=stopped,
                             top_m=top, rate=RATES[layer],

@@ -6,7 +6,12 @@ import numpy as np
 import pytest
 
 from appliance.config import Config
-from appliance.decision.clustering import find_clusters, mean_probability, weighted_mean_motion
+from appliance.decision.clustering import (
+    find_clusters,
+    mean_probability,
+    object_probability,
+    weighted_mean_motion,
+)
 from appliance.decision.probability_map import (
     map_shape, spatial_probability, spatio_temporal_filter, warp_by_rotation,
 )
@@ -133,6 +138,31 @@ def test_clusters_boxes_counts_and_eq20_from_the_map(default_config: Config) -> 
     assert c.bbox == (410.0, 210.0, 431.0, 231.0)
     # region box is the dilated region (larger than the 40 px block)
     assert c.region_bbox[0] < 400 and c.region_bbox[2] > 440
+
+
+def test_eq20_of_a_narrow_object_is_taken_over_its_box_not_its_region(
+        default_config: Config) -> None:
+    """A pedestrian-wide object (8 px) in a region the blur and the dilation make three times
+    as wide: the static scene beside it (p(x) 0.35 in the margin, above the threshold) is not
+    the object's probability of independent motion."""
+    cfg = default_config
+    p = np.zeros(map_shape(CAM, 4), dtype=np.float32)
+    p[48:62, 97:105] = 0.35                      # the blurred margin, u 388..420
+    p[50:60, 100:102] = 0.85                     # the object, u 400..408, v 200..240
+    u = [401.0, 403.0, 405.0, 407.0] * 3
+    v = [205.0] * 4 + [220.0] * 4 + [235.0] * 4
+    side_u = [390.0, 392.0, 414.0, 417.0] * 2
+    side_v = [210.0] * 4 + [230.0] * 4
+    ps = particles(list(zip(u + side_u, v + side_v)), [0.9] * 12 + [0.05] * 8)
+    clusters = find_clusters(p, 4, ps, cfg.clustering, (640, 480))
+    assert len(clusters) == 1
+    c = clusters[0]
+    assert c.n == 20
+    assert mean_probability(c.s) == pytest.approx((12 * 0.85 + 8 * 0.35) / 20, abs=1e-6)
+    assert c.mean_probability == pytest.approx(0.85, abs=1e-6)
+    # fewer than two correspondences inside the box: the whole region's
+    assert object_probability(c.positions, c.s, (0.0, 0.0, 1.0, 1.0)) == \
+        pytest.approx(mean_probability(c.s))
 
 
 def test_no_clusters_on_an_empty_map(default_config: Config) -> None:

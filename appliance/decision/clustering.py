@@ -117,11 +117,11 @@ def merge_clusters(parts: list[Cluster]) -> Cluster:
         return (float(b[:, 0].min()), float(b[:, 1].min()), float(b[:, 2].max()),
                 float(b[:, 3].max()))
 
-    return Cluster(bbox=union([c.bbox for c in parts]),
-                   region_bbox=union([c.region_bbox for c in parts]), n=len(pos),
+    box = union([c.bbox for c in parts])
+    return Cluster(bbox=box, region_bbox=union([c.region_bbox for c in parts]), n=len(pos),
                    foot_v=max(c.foot_v for c in parts),
                    mean_flow=weighted_mean_motion(flows, s),
-                   mean_probability=object_probability(pos, s, union([c.bbox for c in parts])),
+                   mean_probability=object_probability(pos, s, box),
                    positions=pos, flows=flows, s=s, weights=w)
 
 

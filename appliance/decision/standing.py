@@ -388,10 +388,20 @@ def parallax(p: CorridorProbe, flow: PointFlow | None, mover_p: FloatArray,
                     sigma=np.sqrt(sigma2[ok]), w_road=p.w_road[ok], share=p.share[ok])
 
 
-def cell_of(lateral: FloatArray, offsets: FloatArray) -> FloatArray:
-    """The corridor cell (float, floor it) of each lateral offset from the path (m)."""
+def surface_hits(p: CorridorProbe, rays: FloatArray, D: FloatArray
+                 ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Where each ray (M, 3; vehicle frame per unit camera depth) meets an upright surface
+    standing on the path at each distance ``D`` (K,) m ahead of the camera: the camera depth
+    there (M, K), its height above the road (M, K) and the corridor cell it falls in (M, K;
+    whole numbers, as floats)."""
+    offsets = p.offsets
+    lam = D[None, :] / rays[:, :1]
+    height = p.origin[2] + lam * rays[:, 2:3]
+    x = p.origin[0] + lam * rays[:, :1]
+    lateral = p.origin[1] + lam * rays[:, 1:2] - path_y(x, p.curvature)
     width = offsets[-1] - offsets[0] + (offsets[1] - offsets[0] if len(offsets) > 1 else 0.0)
-    return np.floor((lateral - (offsets[0] - 0.5 * width / len(offsets))) * len(offsets) / width)
+    cell = np.floor((lateral - (offsets[0] - 0.5 * width / len(offsets))) * len(offsets) / width)
+    return lam, height, cell
 
 
 def hypothesis_evidence(p: CorridorProbe, flow: PointFlow | None, mover_p: FloatArray,
@@ -410,11 +420,7 @@ def hypothesis_evidence(p: CorridorProbe, flow: PointFlow | None, mover_p: Float
         return out
     rays, w_road, share = pts.rays, pts.w_road, pts.share
     # where each ray meets each hypothesis' surface (points x hypotheses)
-    lam = D[None, :] / rays[:, :1]                          # camera depth there
-    height = p.origin[2] + lam * rays[:, 2:3]
-    x = p.origin[0] + lam * rays[:, :1]
-    lateral = p.origin[1] + lam * rays[:, 1:2] - path_y(x, p.curvature)
-    cell = cell_of(lateral, offsets)
+    lam, height, cell = surface_hits(p, rays, D)
     on = (height >= SURFACE_M[0]) & (height <= SURFACE_M[1]) & (cell >= 0) \
         & (cell < len(offsets))
     g_abs = pts.g_abs[:, None]
@@ -453,11 +459,8 @@ def face_depth(pts: Parallax | None, p: CorridorProbe, c0: int, c1: int, seen: f
     there by more, and the evidence against the road peaks beyond the face."""
     if pts is None or len(pts.along) == 0:
         return None
-    lam = seen / pts.rays[:, 0]
-    height = p.origin[2] + lam * pts.rays[:, 2]
-    x = p.origin[0] + seen
-    lateral = p.origin[1] + lam * pts.rays[:, 1] - path_y(np.full(len(lam), x), p.curvature)
-    cell = cell_of(lateral, p.offsets)
+    _, height, cell = surface_hits(p, pts.rays, np.array([seen]))
+    height, cell = height[:, 0], cell[:, 0]
     on = (height >= SURFACE_M[0]) & (height <= SURFACE_M[1]) & (cell >= c0) & (cell <= c1)
     if np.count_nonzero(on) < MIN_FACE_POINTS:
         return None
@@ -604,8 +607,9 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
     keep = math.exp(-max(dt, 0.0) / cfg.memory_s) if cfg.memory_s > 0.0 else 0.0
     evidence = np.stack([carried(layer, D, rate * travel, keep)
                          for layer, rate in zip(state.evidence, RATES)])
-    pts = parallax(p, flow, mover_p, camera) if p is not None else None
+    pts = None
     if p is not None:
+        pts = parallax(p, flow, mover_p, camera)
         evidence = evidence + hypothesis_evidence(p, flow, mover_p, camera, RATES, pts)
     obstacle = state.obstacle
     if obstacle is not None and t - obstacle.seen > LOST_S:

@@ -170,19 +170,22 @@ def static_flow(x_cur: FloatArray, K: FloatArray, t: FloatArray, Z: FloatArray) 
 
 
 def magnitude_cue_from_static(flow_t: FloatArray, f_s: FloatArray, cfg: DetectionConfig,
-                              sigma_p: FloatArray | None = None) -> FloatArray:
+                              sigma_p: FloatArray | None = None,
+                              relative: FloatArray | None = None) -> FloatArray:
     """Cue from the deficit ``delta = |f_s| - flow_t . f_s / |f_s|`` (px) of the measured flow.
 
-    Its std is ``hypot(magnitude_sigma |f_s|, sigma_p)`` (sigma_p (N,) px: each flow's std
-    along ``f_s``, ``cfg.sigma_p_px`` if None); cue ``1 - exp(-delta+^2 / 2 std^2)``;
-    0 where ``f_s`` is NaN (no road behind the pixel, no metric translation).
+    Its std is ``hypot(r |f_s|, sigma_p)`` (sigma_p (N,) px: each flow's std along ``f_s``,
+    ``cfg.sigma_p_px`` if None; r (N,): the road flow's relative std, ``cfg.magnitude_sigma``
+    if None); cue ``1 - exp(-delta+^2 / 2 std^2)``; 0 where ``f_s`` is NaN (no road behind
+    the pixel, no metric translation).
     """
     sp = cfg.sigma_p_px if sigma_p is None else sigma_p
+    rel = cfg.magnitude_sigma if relative is None else relative
     with np.errstate(divide="ignore", invalid="ignore"):
         length = np.hypot(f_s[:, 0], f_s[:, 1])
         along = (flow_t[:, 0] * f_s[:, 0] + flow_t[:, 1] * f_s[:, 1]) / length
         deficit = np.maximum(length - along, 0.0)
-        std = np.hypot(cfg.magnitude_sigma * length, sp)
+        std = np.hypot(rel * length, sp)
         p = 1.0 - np.exp(-deficit**2 / (2.0 * std**2))
     return np.where(np.isfinite(p), p, 0.0)
 

@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from appliance.config import Config
 from appliance.errors import UsageError
 from appliance.messages import EgoMotion, Frame, ParticleSet, ProbabilityMap, SensorSample
+from appliance.vision.baseline import HISTORY, PastFrame, longer_magnitude
 from appliance.vision.detection import (
     BIRTH_FRACTION,
     BIRTH_LIKELIHOOD,
@@ -27,7 +28,7 @@ from appliance.vision.detection import (
     resample_particles,
 )
 from appliance.vision.epipolar import translation_from_theta
-from appliance.vision.flow import corner_candidates, fb_covariance, track
+from appliance.vision.flow import Tracks, corner_candidates, fb_covariance, track
 from appliance.vision.geometry import (
     FloatArray,
     PinholeCamera,
@@ -39,6 +40,7 @@ from appliance.vision.geometry import (
 )
 from appliance.vision.likelihood import (
     CameraMotion,
+    Cues,
     RoadPlane,
     combine,
     foot_points,
@@ -66,7 +68,9 @@ class VisionState:
     particles: (N, 2) px, where flow is measured from the previous frame;
     attitude: (3, 3) estimated rotation from the nominal camera (mount + PTU on a
     level vehicle) to the actual one (body pitch/roll), used for the road plane;
-    seed, frames: the random generator of frame k is ``default_rng([seed, k])``.
+    seed, frames: the random generator of frame k is ``default_rng([seed, k])``;
+    past: the frames before the previous one, oldest first, for the longer baseline
+    (:mod:`~appliance.vision.baseline`).
     """
 
     seed: int
@@ -76,6 +80,7 @@ class VisionState:
     prev_sensors: SensorSample | None
     particles: FloatArray
     attitude: FloatArray
+    past: tuple[PastFrame, ...] = ()
 
 
 def _rng(seed: int, k: int) -> np.random.Generator:
@@ -171,6 +176,20 @@ def _refine(prior: PriorMotion, xp: FloatArray, xc: FloatArray, keep: FloatArray
     return theta, int(result.inliers.sum()), result.confident
 
 
+def _longer_baseline(cues: Cues, past: tuple[PastFrame, ...], image: NDArray[np.uint8], t: float,
+                     tracks: Tracks, road: RoadPlane, motion: CameraMotion, cfg: Config,
+                     camera: PinholeCamera) -> Cues:
+    """``cues`` with the flow-length cue of the valid tracks whose road flow is short measured
+    over the longer baseline instead (:func:`baseline.longer_magnitude`)."""
+    if cues.magnitude is None:
+        return cues
+    ok = np.flatnonzero(tracks.valid)
+    longer, measured = longer_magnitude(past, image, t, tracks.end[ok], road, motion, cfg, camera)
+    magnitude = cues.magnitude.copy()
+    magnitude[ok[measured]] = longer[measured]
+    return Cues(cues.direction, magnitude, None)
+
+
 def perceive(state: VisionState, frame: Frame, sensors: SensorSample,
              prob_map: ProbabilityMap | None, cfg: Config, camera: PinholeCamera
              ) -> tuple[VisionState, EgoMotion, ParticleSet]:
@@ -226,6 +245,9 @@ def perceive(state: VisionState, frame: Frame, sensors: SensorSample,
         foot = camera.undistort(np.nan_to_num(feet, nan=0.0))
         foot[np.isnan(feet[:, 0])] = np.nan
     cues = motion_cues(ideal_start, ideal_end, motion, road, cfg.detection, cov, foot)
+    past = (*state.past, PastFrame(state.prev_image, state.prev_t,
+                                   None if t_m is None else (R, t_m)))[-HISTORY:]
+    cues = _longer_baseline(cues, past, image, frame.t, tracks, road, motion, cfg, camera)
     lik_all = np.where(tracks.valid, np.clip(combine(cues, cfg.detection.likelihood), 0.0, 1.0), 0.0)
     weights = lik_all[:n]
     end = tracks.end[:n]
@@ -243,5 +265,5 @@ def perceive(state: VisionState, frame: Frame, sensors: SensorSample,
                       valid=valid.copy(), window_px=cfg.flow.window_px,
                       flow_std_px=cfg.detection.sigma_p_px)
     new = VisionState(seed=state.seed, frames=state.frames + 1, prev_image=image, prev_t=frame.t,
-                      prev_sensors=sensors, particles=particles, attitude=attitude)
+                      prev_sensors=sensors, particles=particles, attitude=attitude, past=past)
     return new, ego, out

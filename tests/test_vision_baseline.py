@@ -11,7 +11,8 @@ from test_vision_scene import Box, Scene
 from appliance.config import Config
 from appliance.vision import baseline
 from appliance.vision import geometry as g
-from appliance.vision.baseline import PastFrame, compose, start_frame
+from appliance.vision.baseline import PastFrame, compose, search_start, start_frame
+from appliance.vision.likelihood import CameraMotion
 
 IMAGE = np.zeros((4, 4), dtype=np.uint8)
 
@@ -84,3 +85,27 @@ def test_a_mover_on_a_collision_course_near_the_epipole_stands_out_over_the_long
     # the road and the wall behind it, with the body pitching on a bump, stay static
     assert longer_false < 0.02
     assert short_false < 0.02
+
+
+def test_the_search_starts_where_a_static_point_was_not_where_the_rotation_alone_puts_it() -> None:
+    camera = g.PinholeCamera(640, 480, 600.0, 600.0, 319.5, 239.5)
+    rng = np.random.default_rng(5)
+    # static points 8-40 m ahead, off the epipole; the camera drives 0.4 m per frame, yawing
+    X = np.column_stack([rng.uniform(-6, 6, 50), rng.uniform(-1, 1.5, 50), rng.uniform(8, 40, 50)])
+    step = (g.euler_to_matrix(np.array([0.0, 0.002, 0.0])), np.array([0.0, 0.0, -0.4]))
+    frames = [X]
+    for _ in range(4):
+        frames.append(frames[-1] @ step[0].T + step[1])
+    then, prev, now = (camera.project(P) for P in (frames[0], frames[-2], frames[-1]))
+    past = tuple(PastFrame(IMAGE, 0.04 * k, step) for k in range(4))
+    composed = compose(past)
+    assert composed is not None
+    R, t = composed
+    short = CameraMotion(R=step[0], t_dir=step[1] / 0.4, t_m=step[1], standstill=False, K=camera.K)
+    start = search_start(camera, camera.undistort(now), camera.undistort(prev), short, R,
+                         float(np.linalg.norm(t)) / 0.4)
+    rotation_only = g.lk_start(camera, now, R.T)
+    err = np.hypot(*(start - then).T)
+    err_rot = np.hypot(*(rotation_only - then).T)
+    assert np.median(err_rot) > 1.0
+    assert np.median(err) < 0.2 * np.median(err_rot)

@@ -29,6 +29,7 @@ scaled by the CAN speed); where one is unknown (no metric translation) nothing i
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,6 +54,7 @@ BASELINE_S = 0.18            # s, the longer baseline spans the most frames with
 SHORT_FLOW_PX = 1.5          # px, one frame's road flow shorter than this is measured again
 SLOW_SIGMAS = 3.0            # a flow longer than the road's by this many stds is not measured
 ROAD_PITCH_STD_RAD = 0.009   # rad, how far the road plane's pitch may be off (body pitch, mount)
+SEARCH_LEVELS = 1            # pyramid levels of the search: it starts near its answer
 HISTORY = 8                  # earlier frames kept (a baseline spans at most this + 1 frames)
 
 Motion = tuple[FloatArray, FloatArray]   # (R (3, 3), t_m (3,) m): X_next = R X + t
@@ -120,7 +122,9 @@ def longer_magnitude(past: tuple[PastFrame, ...], image: NDArray[np.uint8], t_no
     if pick.size == 0 or length <= 0.0:
         return cue, done
     pts = points[pick]
-    back = track(image, past[i].image, pts, np.ones(len(pts), dtype=bool), cfg.flow,
+    back = track(image, past[i].image, pts, np.ones(len(pts), dtype=bool),
+                 dataclasses.replace(cfg.flow, pyramid_levels=min(cfg.flow.pyramid_levels,
+                                                                   SEARCH_LEVELS)),
                  guess=search_start(camera, ideal[pick], camera.undistort(previous[pick]), short,
                                     R, length / float(np.linalg.norm(short.t_m))))
     long = CameraMotion(R=R, t_dir=t_m / length, t_m=t_m, standstill=False, K=camera.K)

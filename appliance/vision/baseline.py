@@ -93,14 +93,15 @@ def start_frame(past: tuple[PastFrame, ...], now: float) -> int | None:
 
 
 def longer_magnitude(past: tuple[PastFrame, ...], image: NDArray[np.uint8], t_now: float,
-                     points: FloatArray, previous: FloatArray, road: RoadPlane | None,
-                     short: CameraMotion, cfg: Config, camera: PinholeCamera
-                     ) -> tuple[FloatArray, NDArray[np.bool_]]:
+                     points: FloatArray, ideal: FloatArray, ideal_prev: FloatArray,
+                     road: RoadPlane | None, short: CameraMotion, cfg: Config,
+                     camera: PinholeCamera) -> tuple[FloatArray, NDArray[np.bool_]]:
     """The flow-length cue (N,) at ``points`` (N, 2) px of the current frame measured over the
     longer baseline, and where it was (N,): points below the horizon whose road flow over one
     frame (motion ``short``) is shorter than ``SHORT_FLOW_PX``, tracked back to the baseline's
-    first frame and forward-backward checked. ``previous`` (N, 2) px: where each point was
-    in the previous frame (its flow over one frame). ``past`` is oldest first and ends with the
+    first frame and forward-backward checked. ``ideal`` (N, 2): the same points as ideal
+    pixels; ``ideal_prev`` (N, 2): where each was in the previous frame, ideal pixels (its flow
+    over one frame). ``past`` is oldest first and ends with the
     previous frame (whose motion is ``short``'s). Above the horizon a pixel's depth is its foot
     point's only if it stands on the object below it; the background above a mover's head does
     not, and over several frames its flow falls far short of that depth's: those pixels keep
@@ -114,7 +115,6 @@ def longer_magnitude(past: tuple[PastFrame, ...], image: NDArray[np.uint8], t_no
     if motion is None:
         return cue, done
     R, t_m = motion
-    ideal = camera.undistort(points)
     f_s = road_static_flow(ideal, short, road)
     with np.errstate(invalid="ignore"):
         pick = np.flatnonzero(np.hypot(f_s[:, 0], f_s[:, 1]) < SHORT_FLOW_PX)
@@ -125,7 +125,7 @@ def longer_magnitude(past: tuple[PastFrame, ...], image: NDArray[np.uint8], t_no
     back = track(image, past[i].image, pts, np.ones(len(pts), dtype=bool),
                  dataclasses.replace(cfg.flow, pyramid_levels=min(cfg.flow.pyramid_levels,
                                                                    SEARCH_LEVELS)),
-                 guess=search_start(camera, ideal[pick], camera.undistort(previous[pick]), short,
+                 guess=search_start(camera, ideal[pick], ideal_prev[pick], short,
                                     R, length / float(np.linalg.norm(short.t_m))))
     long = CameraMotion(R=R, t_dir=t_m / length, t_m=t_m, standstill=False, K=camera.K)
     flow_t = ideal[pick] - derotate(camera.K, R, camera.undistort(back.end))

@@ -177,16 +177,17 @@ def _refine(prior: PriorMotion, xp: FloatArray, xc: FloatArray, keep: FloatArray
 
 
 def _longer_baseline(cues: Cues, past: tuple[PastFrame, ...], image: NDArray[np.uint8], t: float,
-                     start: FloatArray, tracks: Tracks, road: RoadPlane, motion: CameraMotion,
-                     cfg: Config, camera: PinholeCamera) -> Cues:
-    """``cues`` with the flow-length cue of the valid tracks (from ``start`` (M, 2) px of the
-    previous frame) whose road flow is short measured over the longer baseline instead
-    (:func:`baseline.longer_magnitude`)."""
+                     tracks: Tracks, ideal_start: FloatArray, ideal_end: FloatArray,
+                     road: RoadPlane, motion: CameraMotion, cfg: Config, camera: PinholeCamera
+                     ) -> Cues:
+    """``cues`` with the flow-length cue of the valid tracks (ideal pixels ``ideal_start`` of
+    the previous frame to ``ideal_end``, (M, 2) each) whose road flow is short measured over the
+    longer baseline instead (:func:`baseline.longer_magnitude`)."""
     if cues.magnitude is None:
         return cues
     ok = np.flatnonzero(tracks.valid)
-    longer, measured = longer_magnitude(past, image, t, tracks.end[ok], start[ok], road, motion,
-                                        cfg, camera)
+    longer, measured = longer_magnitude(past, image, t, tracks.end[ok], ideal_end[ok],
+                                        ideal_start[ok], road, motion, cfg, camera)
     magnitude = cues.magnitude.copy()
     magnitude[ok[measured]] = longer[measured]
     return Cues(cues.direction, magnitude, None)
@@ -249,7 +250,8 @@ def perceive(state: VisionState, frame: Frame, sensors: SensorSample,
     cues = motion_cues(ideal_start, ideal_end, motion, road, cfg.detection, cov, foot)
     past = (*state.past, PastFrame(state.prev_image, state.prev_t,
                                    None if t_m is None else (R, t_m)))[-HISTORY:]
-    cues = _longer_baseline(cues, past, image, frame.t, start, tracks, road, motion, cfg, camera)
+    cues = _longer_baseline(cues, past, image, frame.t, tracks, ideal_start, ideal_end, road,
+                            motion, cfg, camera)
     lik_all = np.where(tracks.valid, np.clip(combine(cues, cfg.detection.likelihood), 0.0, 1.0), 0.0)
     weights = lik_all[:n]
     end = tracks.end[:n]

@@ -51,6 +51,10 @@ GOLDEN = {
     # a pedestrian crossing who stops in the middle of the lane: the walking track fades, the
     # standing obstacle continues it under the same id and is warned (decision/handover.py)
     "pedestrian_stops_in_lane-0": ("pedestrian_stops_in_lane", 0, 8.0),
+    # a lead car 25 m ahead braking hard to a stop: found closing slower than the ego, one
+    # obstacle through the closing layers as it brakes (its evidence carried at up to
+    # standing.BRAKING_CARRY times its closing), to the standing layer at its stop
+    "lead_car_stops_in_lane-0": ("lead_car_stops_in_lane", 0, 8.0),
 }
 # Tolerances of the comparison: the same warning changes in the same order, each within
 # FRAME_TOLERANCE frames and TTC_TOLERANCE_S of the reference. They absorb floating-point

@@ -38,8 +38,10 @@ object's own at its closing speed of the moment. That surface is far and thin (o
 object's rows that a surface at the apparent depth would cover test it), so it is also
 hypothesised where the object stands, closing at ``RATES`` of the ego speed: the flow of a
 surface at D closing at r times the ego speed is that of a static one at D / r, the surface's
-own rows all test it, its evidence is carried nearer by r times the distance driven, and its
-alternatives are the road and something that keeps its distance (no flow: a lead car at the
+own rows all test it, its evidence is carried nearer by r times the distance driven, or by up
+to ``BRAKING_CARRY`` times that, the best of them (a lead car braking comes nearer faster than
+its closing speed of the moment says, and the evidence follows it through the layers to its
+stop), and its alternatives are the road and something that keeps its distance (no flow: a lead car at the
 ego's speed is no closing surface). Where nothing stands, the strongest face of those layers
 is what closes. Its depth is hardly told from a nearer one closing slower (the flow is the
 same); its apparent depth ``D / r`` is, and with it the time to collision. An object that
@@ -98,6 +100,10 @@ LOST_S = 0.3               # s, an obstacle not seen this long is gone
 TOP_M = 1.0                # m, the top of an obstacle's reported box (the probes reach HEIGHTS_M)
 RATES = (1.0, 0.7, 0.5, 0.35, 0.25)  # the closing speeds (shares of the ego speed) hypothesised:
                            #   1, it stands; less, it drives ahead on the path, slower
+BRAKING_CARRY = 4.5        # what closes slower than the ego comes up to this many times nearer per
+                           #   frame than at its closing speed c (``1 + D a / c^2``: a lead car
+                           #   braking at 0.5 g 20 m ahead, closing at half of 40 km/h: about 4)
+BRAKING_STEPS = 5          # the closings between, tried for the evidence carried
 CLOSING_WIDTH_M = 1.2      # m, what closes slower than the ego is a vehicle at least this wide
 FIT_RATIO = 1.01           # ratio of successive depths a face's depth is fit over
 MIN_FACE_POINTS = 5        # points standing up in a face that measure its depth
@@ -532,15 +538,21 @@ def rotation_residual(f_t: FloatArray, normal: FloatArray, iterations: int = 3) 
     return b
 
 
-def carried(evidence: FloatArray, D: FloatArray, travel_m: float, keep: float) -> FloatArray:
+def carried(evidence: FloatArray, D: FloatArray, travel_m: float, keep: float,
+            braking: float = 1.0) -> FloatArray:
     """The evidence of the previous frame on this frame's grid: each hypothesis came
     ``travel_m`` nearer (a standing object stays where it is on the road), faded by ``keep``;
-    nothing is known beyond the grid's far end."""
+    nothing is known beyond the grid's far end. ``braking`` > 1: each came between
+    ``travel_m`` and ``braking`` times that nearer, the best of them (what drives ahead of the
+    car may brake, and then comes nearer faster than at its closing speed of the moment)."""
     if len(D) == 0:
         return evidence
+    shifts = np.linspace(1.0, braking, BRAKING_STEPS) if braking > 1.0 else np.ones(1)
+    x = (D[None, :] + travel_m * shifts[:, None]).ravel()
     out = np.empty_like(evidence)
     for c in range(evidence.shape[1]):
-        out[:, c] = np.interp(D + travel_m, D, evidence[:, c], right=0.0)
+        out[:, c] = np.interp(x, D, evidence[:, c], right=0.0).reshape(len(shifts), len(D)) \
+            .max(axis=0)
     return keep * out
 
 
@@ -605,7 +617,8 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
     travel = max(speed, 0.0) * dt
     driven = state.driven_m + travel
     keep = math.exp(-max(dt, 0.0) / cfg.memory_s) if cfg.memory_s > 0.0 else 0.0
-    evidence = np.stack([carried(layer, D, rate * travel, keep)
+    evidence = np.stack([carried(layer, D, rate * travel, keep,
+                                 1.0 if rate >= 1.0 else BRAKING_CARRY)
                          for layer, rate in zip(state.evidence, RATES)])
     pts = None
     if p is not None:

@@ -18,6 +18,8 @@ from appliance.sim.movers import Trajectory
 
 FloatArray = NDArray[np.float64]
 
+GROUND_CLEARANCE_M = 0.12  # m: the ego drives over anything lower (a manhole cover, a speed bump)
+
 
 @dataclass(frozen=True)
 class Vehicle:
@@ -114,9 +116,12 @@ def collision_time(
     dt: float = 0.002,
 ) -> float | None:
     """First tau in [tau_lo, tau_hi] at which the footprint touches the ego outline, or None.
+    None for something lower than ``GROUND_CLEARANCE_M`` (``size[2]``): the car drives over it.
 
     Found on a ``dt`` grid and refined by bisection to 1e-7 s.
     """
+    if size[2] < GROUND_CLEARANCE_M:
+        return None
     tau = np.arange(tau_lo, tau_hi + dt, dt)
 
     def hit(t: FloatArray) -> NDArray[np.bool_]:

@@ -14,6 +14,9 @@ from appliance.sim.world import BoxSkin
 N_FACADES = 6
 N_CAR_SKINS = 8
 N_PEOPLE = 4
+# the things on the road that never move, each skinned with one texture of its own
+ON_ROAD = {"box": ot.crate, "manhole": ot.manhole, "arrow": ot.arrow,
+           "speed_bump": ot.speed_bump}
 
 
 @dataclass
@@ -63,6 +66,9 @@ class TextureBank:
         bank.add(tx.make_texture("ped_side_plain", ot.pedestrian(sub, True, True), False))
         bank.add(tx.make_texture("cyc_side_plain", ot.cyclist(rng, True, True), False))
         bank.add(tx.make_texture("cyc_front_plain", ot.cyclist(rng, False, True), False))
+        # drawn last: the textures above stay what they were before these existed
+        for kind, draw in ON_ROAD.items():
+            bank.add(tx.make_texture(kind, draw(rng), False))
         return bank.with_contrast(contrast)
 
     def with_contrast(self, contrast: float) -> TextureBank:
@@ -113,6 +119,9 @@ class TextureBank:
             return self.person_skin(key)
         if kind == "cyclist":
             return self.cyclist_skin(key)
+        if kind in ON_ROAD:                      # one texture on every face
+            t = self[kind]
+            return BoxSkin(t, t, t, t, t)
         raise ValueError(f"unknown mover class {kind!r}")
 
 

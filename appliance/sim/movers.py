@@ -1,4 +1,5 @@
-"""Independently moving objects: pedestrians, cyclists, cars on piecewise-linear paths.
+"""Independently moving objects: pedestrians, cyclists, cars on piecewise-linear paths (and
+things that stand still on the road: a box, a manhole cover, a painted arrow, a speed bump).
 
 A :class:`Trajectory` is a list of waypoints ``(tau, x, y)`` in the world frame,
 linear in between: constant velocity on each segment. Before the first waypoint
@@ -27,6 +28,12 @@ SIZES: dict[str, tuple[float, float, float]] = {
     "pedestrian": (0.35, 0.55, 1.75),
     "cyclist": (1.75, 0.6, 1.8),
     "car": (4.4, 1.8, 1.45),
+    # things that never move: a crate left in the lane, and flat things on the road that the
+    # car drives over (lower than collision.GROUND_CLEARANCE_M)
+    "box": (0.5, 0.5, 0.5),
+    "manhole": (0.7, 0.7, 0.01),
+    "arrow": (3.0, 0.9, 0.01),
+    "speed_bump": (0.5, 3.6, 0.07),
 }
 
 

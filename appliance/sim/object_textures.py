@@ -1,5 +1,6 @@
 """Procedural textures of the things in the street: facades, roofs, cars, people, cyclists,
-poles and signs (see :mod:`appliance.sim.textures` for the rip-maps and the ground).
+poles and signs, and the things on the road (a crate, a manhole cover, a painted arrow, a
+speed bump) (see :mod:`appliance.sim.textures` for the rip-maps and the ground).
 
 Facades wrap (one floor and two window bays repeat); the others are stretched over
 the box face they skin. All are drawn from a seeded generator.
@@ -234,4 +235,55 @@ def sign(rng: np.random.Generator) -> U8:
     cv2.rectangle(img, (17, 22), (28, 42), 20.0, 2)
     cv2.line(img, (17, 32), (17 + 2 * digit, 32), 20.0, 2)
     cv2.ellipse(img, (41, 32), (6, 10), 0, 0, 360, 20.0, 2)
+    return to_u8(img)
+
+
+# ---------------------------------------------------------------- things on the road
+
+
+def crate(rng: np.random.Generator) -> U8:
+    """A wooden crate's side, 64 x 64 texels: planks with gaps, a frame and grain."""
+    img = np.full((64, 64), float(rng.uniform(90, 150)), np.float32)
+    for y in range(0, 64, 16):
+        img[y : y + 16] += float(rng.uniform(-15, 15))
+        img[y : y + 2] -= 45.0                          # the gap between planks
+    img[:, :5] -= 25.0
+    img[:, -5:] -= 25.0
+    img += grain(rng, (64, 64), 8.0, 0.8)
+    return to_u8(img)
+
+
+def manhole(rng: np.random.Generator) -> U8:
+    """A manhole cover on the asphalt, 64 x 64 texels: a dark cast-iron disc with a grid."""
+    img = np.full((64, 64), float(rng.uniform(70, 90)), np.float32)
+    disc = np.zeros((64, 64), np.float32)
+    cv2.circle(disc, (32, 32), 29, 1.0, -1)
+    iron = float(rng.uniform(30, 50))
+    img = img * (1.0 - disc) + iron * disc
+    for k in range(8, 60, 8):
+        cv2.line(img, (k, 4), (k, 60), iron + 25.0, 1)
+        cv2.line(img, (4, k), (60, k), iron + 25.0, 1)
+    cv2.circle(img, (32, 32), 29, iron - 15.0, 2)
+    img += grain(rng, (64, 64), 5.0, 0.6)
+    return to_u8(img)
+
+
+def arrow(rng: np.random.Generator) -> U8:
+    """A straight-ahead arrow painted on the asphalt, 32 x 128 texels (across x along)."""
+    img = np.full((128, 32), float(rng.uniform(70, 90)), np.float32)
+    paint = float(rng.uniform(200, 235))
+    cv2.rectangle(img, (12, 40), (20, 127), paint, -1)   # the shaft, towards the car
+    tip = np.array([[16, 0], [2, 44], [30, 44]], np.int32)
+    cv2.fillPoly(img, [tip], paint)
+    img += grain(rng, (128, 32), 6.0, 0.6)
+    return to_u8(img)
+
+
+def speed_bump(rng: np.random.Generator) -> U8:
+    """A speed bump, 256 x 32 texels (across x along): rubber with painted chevron bands."""
+    img = np.full((32, 256), float(rng.uniform(40, 60)), np.float32)
+    paint = float(rng.uniform(190, 230))
+    for u in range(0, 256, 32):
+        img[:, u : u + 16] = paint
+    img += grain(rng, (32, 256), 6.0, 0.6)
     return to_u8(img)

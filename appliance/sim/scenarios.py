@@ -363,15 +363,21 @@ def car_stopped_next_lane(v: Vehicle) -> Plan:
     return _stopped_car(v, 50.0, 3.5)
 
 
+def _standing_in_lane(v: Vehicle, kind: str, lateral_m: float, label: str) -> Plan:
+    """Something of class ``kind`` standing still ``lateral_m`` left of the lane's centre; the
+    ego drives at it at 35 km/h, its bumper reaching it 7 s on, and does not brake."""
+    v0, T = 35 * KMH, 7.0
+    x = v.front + v0 * T + SIZES[kind][0] / 2   # the bumper reaches it at T
+    still = Trajectory(((-30.0, x, lateral_m), (T + 60.0, x, lateral_m)))
+    return Plan(EgoPlan(speed=((0.0, v0),)), duration_s=8.0,
+                movers=(MoverPlan(kind, still, label),))
+
+
 def pedestrian_standing_in_lane(v: Vehicle) -> Plan:
     """Euro NCAP AEB pedestrian, stationary: an adult stands still in the middle of the ego
     lane, facing the car; the ego drives at them at 35 km/h and does not brake. Nothing in the
     scene moves: only the pedestrian's parallax (standing up from the road) sets them apart."""
-    v0, T = 35 * KMH, 7.0
-    x = v.front + v0 * T + SIZES["pedestrian"][0] / 2   # the bumper reaches them at T
-    ped = Trajectory(((-30.0, x, 0.0), (T + 60.0, x, 0.0)))
-    return Plan(EgoPlan(speed=((0.0, v0),)), duration_s=8.0,
-                movers=(MoverPlan("pedestrian", ped, "pedestrian standing in the lane"),))
+    return _standing_in_lane(v, "pedestrian", 0.0, "pedestrian standing in the lane")
 
 
 def lead_car_stops_in_lane(v: Vehicle) -> Plan:
@@ -430,6 +436,28 @@ def lead_car_stops_ego_brakes(v: Vehicle) -> Plan:
                 movers=(MoverPlan("car", lead, "lead car braking to a stop at 3 m/s^2"),))
 
 
+def box_in_lane(v: Vehicle) -> Plan:
+    """A crate 0.5 m on a side stands in the ego lane, its centre 0.2 m left of the lane's; the
+    ego drives at it at 35 km/h and does not brake. Nothing moves: it stands up from the road
+    by 0.5 m, little more than the obstacle cue's lowest probe (0.4 m)."""
+    return _standing_in_lane(v, "box", 0.2, "crate standing in the lane")
+
+
+def flat_things_in_lane(v: Vehicle) -> Plan:
+    """No collision: a manhole cover (0.4 m left of the lane's centre), a painted arrow and a
+    speed bump 7 cm high across the lane lie on the road 3.5, 5 and 6.5 s ahead at 40 km/h; the
+    ego drives over each (all lower than ``collision.GROUND_CLEARANCE_M``). Flat things on the
+    road are no obstacles: nothing stands up from it."""
+    v0 = 40 * KMH
+    things = (("manhole", 3.5, 0.4, "manhole cover"), ("arrow", 5.0, 0.0, "painted arrow"),
+              ("speed_bump", 6.5, 0.0, "speed bump"))
+    movers = tuple(
+        MoverPlan(kind, Trajectory(((-30.0, x, y), (60.0, x, y))), label)
+        for kind, tau, y, label in things
+        for x in (v.front + v0 * tau + SIZES[kind][0] / 2,))
+    return Plan(EgoPlan(speed=((0.0, v0),)), duration_s=8.0, end_s=7.5, movers=movers)
+
+
 def _scenario(fn: Callable[[Vehicle], Plan], collision: bool, description: str) -> Scenario:
     return Scenario(fn.__name__, description, collision, fn, " ".join((fn.__doc__ or "").split()))
 
@@ -483,6 +511,11 @@ SCENARIOS: dict[str, Scenario] = {
             "collision: pedestrian crosses and stops in the lane, 30 km/h, ego does not brake",
         ),
         _scenario(
+            box_in_lane,
+            True,
+            "collision: crate (0.5 m) standing in the lane, ego 35 km/h does not brake",
+        ),
+        _scenario(
             pedestrian_stops_at_kerb,
             False,
             "no collision: pedestrian on a collision course stops at the kerb, 30 km/h",
@@ -514,6 +547,11 @@ SCENARIOS: dict[str, Scenario] = {
             lead_car_stops_ego_brakes,
             False,
             "no collision: lead car 15 m ahead brakes to a stop, the ego brakes harder, 40 km/h",
+        ),
+        _scenario(
+            flat_things_in_lane,
+            False,
+            "no collision: manhole cover, painted arrow and speed bump in the lane, 40 km/h",
         ),
         _scenario(
             pedestrian_passes_front,

@@ -15,6 +15,7 @@ import pytest
 
 from appliance.config import Config
 from appliance.decision.frame import FrameContext
+from appliance.decision import standing
 from appliance.decision.ground_state import CameraPose
 from appliance.decision.standing import (
     CELLS,
@@ -467,35 +468,28 @@ def test_what_closes_slower_than_the_ego_is_a_vehicle(default_config: Config) ->
         2.0 * wide.depth_m)
 
 
-
-def braking_lead(cfg: Config, carry: float | None = None) -> list[Obstacle | None]:
+def braking_lead(cfg: Config) -> list[Obstacle | None]:
     """A lead car 32 m ahead closing at 0.3 of the ego speed brakes at 5 m/s^2 to a stop (its
     closing speed grows to the ego's in 2.1 s), then stands, 20 frames more; its flow 0.2 px
     noisy: the obstacle seen in each frame (None: none that frame)."""
-    import appliance.decision.standing as standing
-    saved = standing.BRAKING_CARRY
-    if carry is not None:
-        standing.BRAKING_CARRY = carry
-    try:
-        state, next_id = init_standing(cfg.obstacle), 5
-        motion = (np.eye(3), np.array([0.0, 0.0, -SPEED * DT]))
-        depth, rate, out = 32.0, 0.3, []
-        for k in range(int(2.1 * FPS) + 20):
-            p = probe(cfg)
-            state, next_id = standing_step(state, p, closing_flows(cfg, p, depth, rate, 0.2, k),
-                                           np.zeros(len(p.points)), k * DT, DT, SPEED, motion,
-                                           CAM, cfg.mount, cfg.warning.corridor_margin_m,
-                                           next_id, cfg.obstacle)
-            out.append(state.obstacle if state.obstacle is not None
-                       and state.obstacle.seen == k * DT else None)
-            depth -= rate * SPEED * DT
-            rate = min(rate + 5.0 / SPEED * DT, 1.0)
-        return out
-    finally:
-        standing.BRAKING_CARRY = saved
+    state, next_id = init_standing(cfg.obstacle), 5
+    motion = (np.eye(3), np.array([0.0, 0.0, -SPEED * DT]))
+    depth, rate, out = 32.0, 0.3, []
+    for k in range(int(2.1 * FPS) + 20):
+        p = probe(cfg)
+        state, next_id = standing_step(state, p, closing_flows(cfg, p, depth, rate, 0.2, k),
+                                       np.zeros(len(p.points)), k * DT, DT, SPEED, motion, CAM,
+                                       cfg.mount, cfg.warning.corridor_margin_m, next_id,
+                                       cfg.obstacle)
+        out.append(state.obstacle if state.obstacle is not None
+                   and state.obstacle.seen == k * DT else None)
+        depth -= rate * SPEED * DT
+        rate = min(rate + 5.0 / SPEED * DT, 1.0)
+    return out
 
 
-def test_a_lead_car_braking_to_a_stop_stays_one_obstacle(default_config: Config) -> None:
+def test_a_lead_car_braking_to_a_stop_stays_one_obstacle(default_config: Config,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
     """As a lead car brakes, what it hypothesises comes nearer faster than at its closing
     speed of the moment; the evidence follows it, so from when it is first found, while it
     still drives, it is seen every frame, one obstacle through the layers to its stop and
@@ -507,5 +501,6 @@ def test_a_lead_car_braking_to_a_stop_stays_one_obstacle(default_config: Config)
     assert all(ob is not None for ob in seen[first:])
     assert {ob.id for ob in seen if ob is not None} == {5}
     assert seen[-1] is not None and seen[-1].rate == 1.0   # it stands, and is found so
-    old = braking_lead(cfg, carry=1.0)
+    monkeypatch.setattr(standing, "BRAKING_CARRY", 1.0)
+    old = braking_lead(cfg)
     assert sum(ob is not None for ob in old[first:]) < len(seen) - first - 3

@@ -41,8 +41,8 @@ surface at D closing at r times the ego speed is that of a static one at D / r, 
 own rows all test it, its evidence is carried nearer by r times the distance driven, or by up
 to ``BRAKING_CARRY`` times that, the best of them (a lead car braking comes nearer faster than
 its closing speed of the moment says, and the evidence follows it through the layers to its
-stop), and its alternatives are the road and something that keeps its distance (no flow: a lead car at the
-ego's speed is no closing surface). Where nothing stands, the strongest face of those layers
+stop), and its alternatives are the road and something that keeps its distance (no flow: a
+lead car at the ego's speed is no closing surface). Where nothing stands, the strongest face of those layers
 is what closes. Its depth is hardly told from a nearer one closing slower (the flow is the
 same); its apparent depth ``D / r`` is, and with it the time to collision. An object that
 brakes towards the car comes nearer faster than its apparent surface would stand: by

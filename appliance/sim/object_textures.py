@@ -280,7 +280,7 @@ def arrow(rng: np.random.Generator) -> U8:
 
 
 def speed_bump(rng: np.random.Generator) -> U8:
-    """A speed bump, 256 x 32 texels (across x along): rubber with painted chevron bands."""
+    """A speed bump, 256 x 32 texels (across x along): rubber with painted bands."""
     img = np.full((32, 256), float(rng.uniform(40, 60)), np.float32)
     paint = float(rng.uniform(190, 230))
     for u in range(0, 256, 32):

@@ -333,15 +333,22 @@ def pedestrian_passes_behind(v: Vehicle) -> Plan:
     return _passing(v, False)
 
 
-def _stopped_car(v: Vehicle, speed_kmh: float, lateral_m: float) -> Plan:
+def _standing(v: Vehicle, kind: str, speed_kmh: float, lateral_m: float, label: str,
+              end_s: float | None = None) -> Plan:
+    """Something of class ``kind`` standing still ``lateral_m`` left of the lane's centre, where
+    the ego's bumper, driving at ``speed_kmh`` without braking, reaches it (or passes it) 7 s
+    on; ``end_s`` None: the drive ends at the collision."""
     v0, T = speed_kmh * KMH, 7.0
-    x = v.front + v0 * T + SIZES["car"][0] / 2   # the ego's bumper meets the car's rear at T
-    car = Trajectory(((-30.0, x, lateral_m), (T + 60.0, x, lateral_m)))
-    in_lane = lateral_m == 0.0
-    label = "car standing in the lane" if in_lane else "car standing in the next lane"
-    end = None if in_lane else T + 0.5   # in the lane the drive ends at the collision
-    return Plan(EgoPlan(speed=((0.0, v0),)), duration_s=8.0, end_s=end,
-                movers=(MoverPlan("car", car, label),))
+    x = v.front + v0 * T + SIZES[kind][0] / 2   # the bumper reaches its near side at T
+    still = Trajectory(((-30.0, x, lateral_m), (T + 60.0, x, lateral_m)))
+    return Plan(EgoPlan(speed=((0.0, v0),)), duration_s=8.0, end_s=end_s,
+                movers=(MoverPlan(kind, still, label),))
+
+
+def _stopped_car(v: Vehicle, speed_kmh: float, lateral_m: float) -> Plan:
+    if lateral_m == 0.0:      # in the lane the drive ends at the collision
+        return _standing(v, "car", speed_kmh, 0.0, "car standing in the lane")
+    return _standing(v, "car", speed_kmh, lateral_m, "car standing in the next lane", 7.5)
 
 
 def car_stopped_in_lane_30(v: Vehicle) -> Plan:
@@ -363,21 +370,11 @@ def car_stopped_next_lane(v: Vehicle) -> Plan:
     return _stopped_car(v, 50.0, 3.5)
 
 
-def _standing_in_lane(v: Vehicle, kind: str, lateral_m: float, label: str) -> Plan:
-    """Something of class ``kind`` standing still ``lateral_m`` left of the lane's centre; the
-    ego drives at it at 35 km/h, its bumper reaching it 7 s on, and does not brake."""
-    v0, T = 35 * KMH, 7.0
-    x = v.front + v0 * T + SIZES[kind][0] / 2   # the bumper reaches it at T
-    still = Trajectory(((-30.0, x, lateral_m), (T + 60.0, x, lateral_m)))
-    return Plan(EgoPlan(speed=((0.0, v0),)), duration_s=8.0,
-                movers=(MoverPlan(kind, still, label),))
-
-
 def pedestrian_standing_in_lane(v: Vehicle) -> Plan:
     """Euro NCAP AEB pedestrian, stationary: an adult stands still in the middle of the ego
     lane, facing the car; the ego drives at them at 35 km/h and does not brake. Nothing in the
     scene moves: only the pedestrian's parallax (standing up from the road) sets them apart."""
-    return _standing_in_lane(v, "pedestrian", 0.0, "pedestrian standing in the lane")
+    return _standing(v, "pedestrian", 35.0, 0.0, "pedestrian standing in the lane")
 
 
 def lead_car_stops_in_lane(v: Vehicle) -> Plan:
@@ -440,7 +437,7 @@ def box_in_lane(v: Vehicle) -> Plan:
     """A crate 0.5 m on a side stands in the ego lane, its centre 0.2 m left of the lane's; the
     ego drives at it at 35 km/h and does not brake. Nothing moves: it stands up from the road
     by 0.5 m, little more than the obstacle cue's lowest probe (0.4 m)."""
-    return _standing_in_lane(v, "box", 0.2, "crate standing in the lane")
+    return _standing(v, "box", 35.0, 0.2, "crate standing in the lane")
 
 
 def flat_things_in_lane(v: Vehicle) -> Plan:
@@ -451,11 +448,11 @@ def flat_things_in_lane(v: Vehicle) -> Plan:
     v0 = 40 * KMH
     things = (("manhole", 3.5, 0.4, "manhole cover"), ("arrow", 5.0, 0.0, "painted arrow"),
               ("speed_bump", 6.5, 0.0, "speed bump"))
-    movers = tuple(
-        MoverPlan(kind, Trajectory(((-30.0, x, y), (60.0, x, y))), label)
-        for kind, tau, y, label in things
-        for x in (v.front + v0 * tau + SIZES[kind][0] / 2,))
-    return Plan(EgoPlan(speed=((0.0, v0),)), duration_s=8.0, end_s=7.5, movers=movers)
+    movers = []
+    for kind, tau, y, label in things:
+        x = v.front + v0 * tau + SIZES[kind][0] / 2   # the bumper reaches it at tau
+        movers.append(MoverPlan(kind, Trajectory(((-30.0, x, y), (60.0, x, y))), label))
+    return Plan(EgoPlan(speed=((0.0, v0),)), duration_s=8.0, end_s=7.5, movers=tuple(movers))
 
 
 def _scenario(fn: Callable[[Vehicle], Plan], collision: bool, description: str) -> Scenario:

@@ -12,6 +12,7 @@ from appliance.sim.collision import GROUND_CLEARANCE_M
 from appliance.sim.drive import T0, SimulatedDrive, drive_look
 from appliance.sim.effects import Effects, EffectsPipeline
 from appliance.sim.ego import BodyBounce
+from appliance.sim.layout import KERB_LEFT, KERB_RIGHT
 from appliance.sim.look import RANGES, Look
 from appliance.sim.movers import SIZES
 from appliance.sim.scenarios import SCENARIOS
@@ -223,3 +224,27 @@ def test_flat_things_are_driven_over_and_a_crate_is_struck() -> None:
     x, _ = crate.movers[0].trajectory.position(0.0)
     ego_front_at_contact = crate.vehicle.front + 35 / 3.6 * crate.tau_end
     assert ego_front_at_contact == pytest.approx(x - SIZES["box"][0] / 2, abs=0.01)
+
+
+def test_overhead_structures_span_the_street_above_the_car() -> None:
+    """The sign gantry and the bridge stand across the street; every face of theirs lower than
+    their clearance is beyond the kerbs (a post, a wall), and the camera sees both ahead and
+    drives under them: no collision."""
+    drive = SimulatedDrive("overhead_sign_and_bridge", seed=0)
+    assert drive.truth_header["collision"] is False and not drive.movers
+    over = [s for s in drive.statics if s.body.kind == "overhead"]
+    assert len(over) == 2
+    for obj, clearance in zip(over, (5.2, 4.5)):
+        corners = obj.body.placed(obj.x, obj.y, obj.yaw).corners      # (F, 4, 3), straight road
+        low = corners[:, :, 2].min(axis=1) < clearance - 1e-9
+        lateral = corners[:, :, 1]
+        beyond = (lateral.max(axis=1) <= KERB_RIGHT) | (lateral.min(axis=1) >= KERB_LEFT)
+        assert low.any() and np.all(beyond[low])
+        over_lane = (lateral.min(axis=1) < 1.75) & (lateral.max(axis=1) > -1.75)
+        assert corners[over_lane][:, :, 2].min() == pytest.approx(clearance)
+        # seen ahead, and driven under before the drive ends
+        bumper_at_end = drive.vehicle.front + 50 / 3.6 * drive.tau_end
+        assert drive.vehicle.front + 50 / 3.6 * drive.tau_start < corners[..., 0].min()
+        assert corners[..., 0].max() < bumper_at_end
+    ids = drive.snapshot(30).ids
+    assert all(np.count_nonzero(ids == o.body.obj) > 50 for o in over)

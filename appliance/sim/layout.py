@@ -76,6 +76,22 @@ class ClearView:
 
 
 @dataclass(frozen=True)
+class Overhead:
+    """A structure across the street above the road at arc length ``s`` (m), its lowest edge
+    ``clearance_m`` over the road: ``kind`` "sign" (a gantry: two posts on the sidewalks, a beam
+    and a direction sign over each lane) or "bridge" (a concrete deck on two walls beyond the
+    sidewalks)."""
+
+    s: float
+    kind: str = "sign"
+    clearance_m: float = 5.0
+
+    def __post_init__(self) -> None:
+        if self.kind not in ("sign", "bridge"):
+            raise ValueError(f"unknown overhead structure {self.kind!r}")
+
+
+@dataclass(frozen=True)
 class StreetPlan:
     """What a scenario fixes about the street; the rest is drawn from the seed."""
 
@@ -83,6 +99,7 @@ class StreetPlan:
     parked: tuple[ParkedCar, ...] = ()
     clear_view: tuple[ClearView, ...] = ()
     parking_occupancy: float = 0.55
+    overhead: tuple[Overhead, ...] = ()
 
 
 @dataclass(frozen=True)

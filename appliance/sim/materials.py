@@ -69,6 +69,8 @@ class TextureBank:
         # drawn last: the textures above stay what they were before these existed
         for kind, draw in ON_ROAD.items():
             bank.add(tx.make_texture(kind, draw(rng), False))
+        bank.add(tx.make_texture("direction_sign", ot.direction_sign(rng), False))
+        bank.add(ot.concrete(rng))
         return bank.with_contrast(contrast)
 
     def with_contrast(self, contrast: float) -> TextureBank:

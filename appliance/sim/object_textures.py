@@ -1,6 +1,7 @@
 """Procedural textures of the things in the street: facades, roofs, cars, people, cyclists,
-poles and signs, and the things on the road (a crate, a manhole cover, a painted arrow, a
-speed bump) (see :mod:`appliance.sim.textures` for the rip-maps and the ground).
+poles and signs, the things on the road (a crate, a manhole cover, a painted arrow, a speed
+bump) and the things above it (a direction sign on a gantry, a concrete bridge) (see
+:mod:`appliance.sim.textures` for the rip-maps and the ground).
 
 Facades wrap (one floor and two window bays repeat); the others are stretched over
 the box face they skin. All are drawn from a seeded generator.
@@ -287,3 +288,39 @@ def speed_bump(rng: np.random.Generator) -> U8:
         img[:, u : u + 16] = paint
     img += grain(rng, (32, 256), 6.0, 0.6)
     return to_u8(img)
+
+
+# ---------------------------------------------------------------- things above the road
+
+
+def direction_sign(rng: np.random.Generator) -> U8:
+    """A direction sign on a gantry, 64 x 128 texels (3.4 x 1.6 m): a dark panel with a light
+    border, three lines of lettering and an arrow pointing down to the lane."""
+    panel = float(rng.uniform(40, 80))
+    light = float(rng.uniform(200, 235))
+    img = np.full((64, 128), panel, np.float32)
+    cv2.rectangle(img, (2, 2), (125, 61), light, 2)
+    for row in (10, 24, 38):                       # words: blocks of letters with gaps
+        u = 8
+        while u < 96:
+            n = int(rng.integers(3, 8))
+            for _ in range(n):
+                if u + 4 > 96:
+                    break
+                cv2.rectangle(img, (u, row), (u + 3, row + 8), light, -1)
+                u += 6
+            u += 8
+    cv2.rectangle(img, (108, 10), (114, 40), light, -1)   # the arrow's shaft and head
+    cv2.fillPoly(img, [np.array([[103, 40], [119, 40], [111, 54]], np.int32)], light)
+    img += grain(rng, (64, 128), 4.0, 0.6)
+    return to_u8(img)
+
+
+def concrete(rng: np.random.Generator) -> Texture:
+    """Cast concrete, 128 x 128 texels of 2 cm (wraps): formwork joints every 1.28 m and
+    weathering stains."""
+    img = 135.0 + 18.0 * pink_noise(rng, (128, 128), beta=1.4, low_cut=1.0)
+    img[::64] -= 30.0
+    img[:, ::64] -= 20.0
+    img += grain(rng, (128, 128), 5.0, 0.6)
+    return make_texture("concrete", to_u8(img), True, (0.02, 0.02))

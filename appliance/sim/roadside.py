@@ -1,7 +1,7 @@
 """Things standing along the street: buildings (also along cross streets), parked cars and
 poles, placed from the seed (see :mod:`appliance.sim.layout`). Anything near a mover's path or
 in a scenario's clear-view zone is left out; the parked cars a scenario asks for are always
-placed.
+placed, and so are the structures across the street above the road (a sign gantry, a bridge).
 """
 
 from __future__ import annotations
@@ -24,16 +24,19 @@ from appliance.sim.layout import (
     FloatArray,
     Intersection,
     KeepClear,
+    Overhead,
     StreetPlan,
     subtract,
 )
 from appliance.sim.materials import N_FACADES, TextureBank
 from appliance.sim.world import Body, BoxSkin, FaceSet, StaticObject, box_faces, rect_face
 
+GANTRY_POSTS = (KERB_RIGHT - 1.0, KERB_LEFT + 1.0)  # lateral offsets of a sign gantry's posts
+
 
 class Roadside:
     """Places the street's objects; ``objects`` collects them (ids: cars 101.., buildings 1001..,
-    poles 3001..)."""
+    poles 3001.., overhead structures 4001..)."""
 
     def __init__(
         self,
@@ -46,7 +49,7 @@ class Roadside:
         self.plan, self.line, self.bank, self.rng = plan, line, bank, rng
         self.keep_clear = keep_clear
         self.objects: list[StaticObject] = []
-        self.next_id = {"car": 101, "building": 1001, "pole": 3001}
+        self.next_id = {"car": 101, "building": 1001, "pole": 3001, "overhead": 4001}
 
     def _id(self, kind: str) -> int:
         self.next_id[kind] += 1
@@ -249,6 +252,59 @@ class Roadside:
                             )
                         )
                     s += float(self.rng.uniform(22, 35))
+
+    def _slab(
+        self,
+        size: tuple[float, float, float],
+        at: tuple[float, float, float],
+        skin: BoxSkin,
+        bottom: int,
+        obj: int,
+    ) -> FaceSet:
+        """A box of ``size`` whose footprint centre is at ``at`` (body frame), with a bottom
+        face: it is seen from below."""
+        L, W, _ = size
+        under = rect_face(np.zeros(3), np.array([0.0, 0.0, -1.0]), np.array([1.0, 0.0, 0.0]),
+                          W, L, bottom, self.bank.textures, obj=obj)
+        faces = FaceSet.concat([box_faces(*size, skin, self.bank.textures, obj),
+                                FaceSet.from_quads([under])])
+        return faces.transformed(np.eye(3), np.array(at, float))
+
+    def overhead(self, o: Overhead) -> None:
+        """A sign gantry or a bridge across the street at arc length ``o.s``, its lowest edge
+        ``o.clearance_m`` over the road (placed whatever the movers' paths: nothing walks
+        through it; no random numbers drawn)."""
+        c, obj = o.clearance_m, self._id("overhead")
+        b = self.bank
+        plain = b["roof"]
+        if o.kind == "sign":
+            post = BoxSkin(b["pole"], b["pole"], b["pole"], b["pole"], plain)
+            width = GANTRY_POSTS[1] - GANTRY_POSTS[0] + 0.3
+            middle = 0.5 * (GANTRY_POSTS[0] + GANTRY_POSTS[1])
+            height = c + 1.9
+            parts = [self._slab((0.3, 0.3, height), (0.0, d, 0.0), post, plain, obj)
+                     for d in GANTRY_POSTS]
+            parts.append(self._slab((0.3, width, 0.4), (0.0, middle, c + 1.4),
+                                    BoxSkin(plain, plain, plain, plain, plain), plain, obj))
+            sign = b["direction_sign"]
+            parts.append(self._slab((0.08, 3.4, 1.6), (-0.2, 0.0, c),      # faces the ego lane
+                                    BoxSkin(plain, sign, plain, plain, plain), plain, obj))
+            parts.append(self._slab((0.08, 3.4, 1.6), (0.2, 3.5, c),       # the oncoming lane
+                                    BoxSkin(sign, plain, plain, plain, plain), plain, obj))
+            size = (0.5, width, height)
+        else:
+            wall = b["concrete"]
+            skin = BoxSkin(wall, wall, wall, wall, plain)
+            width = FRONT_LEFT - FRONT_RIGHT + 2.0
+            middle = 0.5 * (FRONT_LEFT + FRONT_RIGHT)
+            parts = [self._slab((9.0, width, 1.1), (0.0, middle, c), skin, wall, obj)]
+            parts += [self._slab((9.0, 1.0, c), (0.0, d, 0.0), skin, wall, obj)
+                      for d in (FRONT_RIGHT - 0.5, FRONT_LEFT + 0.5)]
+            size = (9.0, width, c + 1.1)
+        p = self.line.point(o.s, 0.0)
+        _, _, psi = self.line.pose(o.s)
+        self.objects.append(StaticObject(Body(obj, "overhead", size, FaceSet.concat(parts)),
+                                         float(p[0]), float(p[1]), float(psi)))
 
     def cross_street_buildings(self, x: Intersection) -> None:
         """Rows of buildings along the cross street (none in its open corners)."""

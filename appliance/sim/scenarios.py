@@ -28,7 +28,7 @@ from appliance.sim.movers import (
     stand_then_cross,
     stop_at,
 )
-from appliance.sim.street import ClearView, Intersection, ParkedCar, StreetPlan
+from appliance.sim.street import ClearView, Intersection, Overhead, ParkedCar, StreetPlan
 
 KMH = 1.0 / 3.6  # m/s per km/h
 WALK = 5.0 * KMH  # Euro NCAP adult walking speed
@@ -455,6 +455,17 @@ def flat_things_in_lane(v: Vehicle) -> Plan:
     return Plan(EgoPlan(speed=((0.0, v0),)), duration_s=8.0, end_s=7.5, movers=tuple(movers))
 
 
+def overhead_sign_and_bridge(v: Vehicle) -> Plan:
+    """No collision: the ego drives at 50 km/h under a sign gantry (its signs' lower edge 5.2 m
+    over the road) 3 s ahead and then under a concrete bridge (clearance 4.5 m, 9 m deep) 6 s
+    ahead. Both stand across the whole corridor, nearer than the road beyond them, but far above
+    any car: no obstacles."""
+    v0 = 50 * KMH
+    street = StreetPlan(overhead=(Overhead(v.front + v0 * 3.0, "sign", 5.2),
+                                  Overhead(v.front + v0 * 6.0 + 4.5, "bridge", 4.5)))
+    return Plan(EgoPlan(speed=((0.0, v0),)), duration_s=8.0, end_s=7.5, street=street)
+
+
 def _scenario(fn: Callable[[Vehicle], Plan], collision: bool, description: str) -> Scenario:
     return Scenario(fn.__name__, description, collision, fn, " ".join((fn.__doc__ or "").split()))
 
@@ -549,6 +560,11 @@ SCENARIOS: dict[str, Scenario] = {
             flat_things_in_lane,
             False,
             "no collision: manhole cover, painted arrow and speed bump in the lane, 40 km/h",
+        ),
+        _scenario(
+            overhead_sign_and_bridge,
+            False,
+            "no collision: under a sign gantry (5.2 m) and a bridge (4.5 m), 50 km/h",
         ),
         _scenario(
             pedestrian_passes_front,

@@ -24,6 +24,7 @@ from appliance.sim.layout import (
     FloatArray,
     Intersection,
     KeepClear,
+    Overhead,
     ParkedCar,
     StreetPlan,
     subtract,
@@ -37,6 +38,7 @@ __all__ = [
     "ClearView",
     "Intersection",
     "KeepClear",
+    "Overhead",
     "ParkedCar",
     "StreetBuilder",
     "StreetPlan",
@@ -102,6 +104,8 @@ class StreetBuilder:
         for x in self.plan.intersections:
             self._cross_street(x)
             self.roadside.cross_street_buildings(x)
+        for o in self.plan.overhead:
+            self.roadside.overhead(o)
         objects = self.roadside.objects
         faces = FaceSet.concat(
             [FaceSet.from_quads(self.quads)] + [o.body.placed(o.x, o.y, o.yaw) for o in objects]

@@ -71,11 +71,11 @@ def probe(cfg: Config, yaw_rate: float = 0.0) -> CorridorProbe:
     return p
 
 
-def scene_depth(cfg: Config, p: CorridorProbe, wall: tuple[float, float, float] | None
-                ) -> np.ndarray:
+def scene_depth(cfg: Config, p: CorridorProbe, wall: tuple[float, float, float] | None,
+                top: float = 1.5) -> np.ndarray:
     """The camera depth (m, now) each probe sees: the flat road, or an upright wall
     (depth ahead of the camera m, lateral extent y0..y1 m) where its ray meets the wall first
-    (the wall 1.5 m tall)."""
+    (the wall ``top`` m tall)."""
     h = cfg.mount.z_m
     z_road = np.where(p.rays[:, 2] < 0.0, -h / np.minimum(p.rays[:, 2], -1e-9), np.inf)
     z = z_road.copy()
@@ -84,7 +84,7 @@ def scene_depth(cfg: Config, p: CorridorProbe, wall: tuple[float, float, float] 
         lam = depth / p.rays[:, 0]
         y = p.origin[1] + lam * p.rays[:, 1]
         height = h + lam * p.rays[:, 2]
-        hit = (lam < z_road) & (y >= y0) & (y <= y1) & (height >= 0.0) & (height <= 1.5)
+        hit = (lam < z_road) & (y >= y0) & (y <= y1) & (height >= 0.0) & (height <= top)
         z = np.where(hit, lam, z)
     return z
 
@@ -163,6 +163,26 @@ def test_a_wall_in_the_lane_is_found_at_its_distance(default_config: Config) -> 
         # it covers the ego's width: the corridor's middle cells
         assert c0 <= SIDE_CELLS + 1 and c1 >= SIDE_CELLS + CELLS - 2
         assert not joins_roadside(E, p.ranges, found, c0, c1, 5.0)
+
+
+def test_a_low_crate_is_found_by_a_low_surface(default_config: Config) -> None:
+    """A crate 0.5 m tall and wide: the points a surface up to ``SURFACE_M[1]`` asks above it
+    see the road behind it and speak against it; the low surface, asked up to ``LOW_TOP_M``,
+    finds it at its distance. A flat road gives neither any evidence."""
+    cfg = default_config
+    p = probe(cfg)
+    corridor = slice(SIDE_CELLS, SIDE_CELLS + CELLS)
+    road = hypothesis_evidence(p, flows(p, scene_depth(cfg, p, None), 0.05),
+                               np.zeros(len(p.points)), CAM, RATES, low=True)
+    assert road[-1][:, corridor].max() < 2.0
+    for depth in (10.0, 16.0):
+        z = scene_depth(cfg, p, (depth, -0.05, 0.45), top=0.5)
+        E = hypothesis_evidence(p, flows(p, z, 0.05), np.zeros(len(p.points)), CAM, RATES,
+                                low=True)
+        tall, low = E[0][:, corridor], E[-1][:, corridor]
+        assert low.max() > 1.5 * tall.max()
+        face = nearest_face(E[-1], p.ranges, 0.5 * low.max())
+        assert face is not None and face[1] == pytest.approx(depth, rel=0.15)
 
 
 def test_points_on_a_mover_say_nothing(default_config: Config) -> None:

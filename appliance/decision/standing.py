@@ -15,9 +15,12 @@ plus ``warning.corridor_margin_m`` a side) or ``SIDE_CELLS`` beside it, probed a
 (:func:`corridor_probe` names them and where each search starts); per point and hypothesis
 whose surface its ray meets, the log-likelihood ratio of "a static surface at D" against "the
 road", residuals truncated at ``RESIDUAL_CLIP`` std so that no single point decides
-(:func:`hypothesis_evidence`). A point moving independently (its flow ``CROSS_SIGMAS`` std or
-more across the static direction, p(x) >= ``MOVER_PROBABILITY``, or on a moving track) says
-nothing: it is a mover, and the movers' tracks warn of it.
+(:func:`hypothesis_evidence`). A surface reaching ``SURFACE_M[1]`` and a low one reaching
+``LOW_TOP_M`` are both hypothesised; what stands is the better of the two: above a crate the
+upper probes see the road behind it, and speak against the taller surface. A point moving
+independently (its flow ``CROSS_SIGMAS`` std or more across the static direction, p(x) >=
+``MOVER_PROBABILITY``, or on a moving track) says nothing: it is a mover, and the movers'
+tracks warn of it.
 
 The evidence of a hypothesis is summed over frames, anchored to the road (a standing object
 comes nearer by the distance driven), with a fading memory (``obstacle.memory_s``). Where a
@@ -89,6 +92,8 @@ SIGMA_FLOOR_PX = 0.05      # px, the flow's error is taken to be at least this
 SHORT_FLOW_PX = 1.0        # px, a road flow shorter than this has an error of its own, not relative
 RELATIVE_ERROR = 0.1       # share of the road's flow added to a point's error (long flows)
 SURFACE_M = (0.25, 0.9)    # m above the road: the part of a hypothesised surface its points test
+LOW_TOP_M = 0.55           # m, the top of a low standing surface (a crate): its points above
+#                            see the road behind it, and are not asked
 MIN_POINTS = 20            # measured points a frame needs to say anything
 EDGE_MARGIN_PX = 6         # px, probes this close to the border are not measured
 GAP_CELLS = 1              # cells beside an obstacle searched for a roadside coming nearer
@@ -227,10 +232,12 @@ def fit_closing(history: tuple[tuple[float, float, bool], ...]) -> float | None:
 
 @dataclass(frozen=True)
 class StandingState:
-    """evidence: (bins, CELLS + 2 SIDE_CELLS) summed log-likelihood ratios on the distance grid
-    ``ranges`` (m ahead of the camera, this frame's); obstacle: what stands in the path, if
-    anything; motions: the camera's motion (R, t_m) into each of the last frames, oldest first (None
-    where the speed was unknown); driven_m: the distance driven since the start (m)."""
+    """evidence: (layers, bins, CELLS + 2 SIDE_CELLS) summed log-likelihood ratios on the
+    distance grid ``ranges`` (m ahead of the camera, this frame's), a layer per closing rate of
+    ``RATES`` and last the low standing surface (``LOW_TOP_M``); obstacle: what stands in the
+    path, if anything; motions: the camera's motion (R, t_m) into each of the last frames,
+    oldest first (None where the speed was unknown); driven_m: the distance driven since the
+    start (m)."""
 
     evidence: FloatArray
     obstacle: Obstacle | None = None
@@ -247,7 +254,7 @@ def ranges(cfg: ObstacleConfig) -> FloatArray:
 
 
 def init_standing(cfg: ObstacleConfig) -> StandingState:
-    return StandingState(evidence=np.zeros((len(RATES), len(ranges(cfg)),
+    return StandingState(evidence=np.zeros((len(RATES) + 1, len(ranges(cfg)),
                                             CELLS + 2 * SIDE_CELLS)))
 
 
@@ -412,14 +419,15 @@ def surface_hits(p: CorridorProbe, rays: FloatArray, D: FloatArray
 
 def hypothesis_evidence(p: CorridorProbe, flow: PointFlow | None, mover_p: FloatArray,
                         camera: PinholeCamera, rates: tuple[float, ...] = (1.0,),
-                        pts: Parallax | None = None) -> FloatArray:
-    """This frame's evidence (len(rates), bins, cells), nats: for each hypothesis (an upright
-    surface at a distance, in a cell, closing at a share of the ego speed), the summed
+                        pts: Parallax | None = None, low: bool = False) -> FloatArray:
+    """This frame's evidence (len(rates) + low, bins, cells), nats: for each hypothesis (an
+    upright surface at a distance, in a cell, closing at a share of the ego speed), the summed
     log-likelihood ratio against the road of the points (:func:`parallax`; ``pts`` where
     already computed) whose ray meets that surface between ``SURFACE_M`` above the road, each
-    point's residuals truncated at ``RESIDUAL_CLIP`` std (no single point decides)."""
+    point's residuals truncated at ``RESIDUAL_CLIP`` std (no single point decides). ``low``: a
+    last layer, a low surface standing still, asked only by its points up to ``LOW_TOP_M``."""
     D, offsets = p.ranges, p.offsets
-    out = np.zeros((len(rates), len(D), len(offsets)))
+    out = np.zeros((len(rates) + low, len(D), len(offsets)))
     if pts is None:
         pts = parallax(p, flow, mover_p, camera)
     if pts is None:
@@ -448,6 +456,10 @@ def hypothesis_evidence(p: CorridorProbe, flow: PointFlow | None, mover_p: Float
         llr = 0.5 * (alt - r_hyp) * share[i]        # the part of the flow across g cancels
         ok = np.isfinite(llr)
         np.add.at(out[j], (k[ok], cells[ok]), llr[ok])
+        if low and j == 0:
+            # a low surface standing still: only its points up to LOW_TOP_M are asked
+            ok = ok & (height[i, k] <= LOW_TOP_M)
+            np.add.at(out[-1], (k[ok], cells[ok]), llr[ok])
     return out
 
 
@@ -619,17 +631,19 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
     keep = math.exp(-max(dt, 0.0) / cfg.memory_s) if cfg.memory_s > 0.0 else 0.0
     evidence = np.stack([carried(layer, D, rate * travel, keep,
                                  1.0 if rate >= 1.0 else BRAKING_CARRY)
-                         for layer, rate in zip(state.evidence, RATES)])
+                         for layer, rate in zip(state.evidence, (*RATES, 1.0))])
     pts = None
     if p is not None:
         pts = parallax(p, flow, mover_p, camera)
-        evidence = evidence + hypothesis_evidence(p, flow, mover_p, camera, RATES, pts)
+        evidence = evidence + hypothesis_evidence(p, flow, mover_p, camera, RATES, pts, True)
     obstacle = state.obstacle
     if obstacle is not None and t - obstacle.seen > LOST_S:
         obstacle = None
     width = corridor_width(mount, margin)
     cell = width / CELLS
-    face, layer = nearest_face(evidence[0], D, cfg.evidence_threshold), 0
+    # what stands: the better of a surface up to SURFACE_M[1] and a low one, per hypothesis
+    standing = np.maximum(evidence[0], evidence[-1])
+    face, layer = nearest_face(standing, D, cfg.evidence_threshold), 0
     if face is None:
         # nothing stands: the strongest face of something closing slower
         faces = [(f, j) for j in range(1, len(RATES))
@@ -647,7 +661,7 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
         if face_m is None:
             face_m = obstacle.depth_m - travel if obstacle is not None and obstacle.rate == 1.0 \
                 and layer == 0 else depth
-        layered = evidence[layer]
+        layered = standing if layer == 0 else evidence[layer]
         offsets = cell_offsets(width)
         half = 0.5 * cell
         lateral = (float(offsets[c0] - half), float(offsets[c1] + half))

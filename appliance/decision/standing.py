@@ -45,11 +45,11 @@ own rows all test it, its evidence is carried nearer by r times the distance dri
 to ``BRAKING_CARRY`` times that, the best of them (a lead car braking comes nearer faster than
 its closing speed of the moment says, and the evidence follows it through the layers to its
 stop), and its alternatives are the road and something that keeps its distance (no flow: a
-lead car at the ego's speed is no closing surface). Where nothing stands, the strongest face of those layers
-is what closes. Its depth is hardly told from a nearer one closing slower (the flow is the
-same); its apparent depth ``D / r`` is, and with it the time to collision. An object that
-brakes towards the car comes nearer faster than its apparent surface would stand: by
-``1 + D a / c^2`` per metre driven (gap D, closing speed c, closing deceleration a); from that
+lead car at the ego's speed is no closing surface). Where nothing stands, the strongest face
+of those layers is what closes. Its depth is hardly told from a nearer one closing slower (the
+flow is the same); its apparent depth ``D / r`` is, and with it the time to collision. An
+object that brakes towards the car comes nearer faster than its apparent surface would stand:
+by ``1 + D a / c^2`` per metre driven (gap D, closing speed c, closing deceleration a); from that
 rate, measured over the frames of one layer, the time to collision at a constant deceleration
 (:func:`braking_ttc`), for an obstacle once found closing slower than the ego (what stands
 does not brake; its depths' jitter would).
@@ -105,6 +105,8 @@ LOST_S = 0.3               # s, an obstacle not seen this long is gone
 TOP_M = 1.0                # m, the top of an obstacle's reported box (the probes reach HEIGHTS_M)
 RATES = (1.0, 0.7, 0.5, 0.35, 0.25)  # the closing speeds (shares of the ego speed) hypothesised:
                            #   1, it stands; less, it drives ahead on the path, slower
+LAYER_RATES = (*RATES, 1.0)  # the closing rate of each evidence layer: RATES, then the low
+                           #   standing surface (LOW_TOP_M)
 BRAKING_CARRY = 4.5        # what closes slower than the ego comes up to this many times nearer per
                            #   frame than at its closing speed c (``1 + D a / c^2``: a lead car
                            #   braking at 0.5 g 20 m ahead, closing at half of 40 km/h: about 4)
@@ -233,11 +235,11 @@ def fit_closing(history: tuple[tuple[float, float, bool], ...]) -> float | None:
 @dataclass(frozen=True)
 class StandingState:
     """evidence: (layers, bins, CELLS + 2 SIDE_CELLS) summed log-likelihood ratios on the
-    distance grid ``ranges`` (m ahead of the camera, this frame's), a layer per closing rate of
-    ``RATES`` and last the low standing surface (``LOW_TOP_M``); obstacle: what stands in the
-    path, if anything; motions: the camera's motion (R, t_m) into each of the last frames,
-    oldest first (None where the speed was unknown); driven_m: the distance driven since the
-    start (m)."""
+    distance grid ``ranges`` (m ahead of the camera, this frame's), a layer per rate of
+    ``LAYER_RATES`` (those of ``RATES``, then the low standing surface, ``LOW_TOP_M``);
+    obstacle: what stands in the path, if anything; motions: the camera's motion (R, t_m) into
+    each of the last frames, oldest first (None where the speed was unknown); driven_m: the
+    distance driven since the start (m)."""
 
     evidence: FloatArray
     obstacle: Obstacle | None = None
@@ -254,7 +256,7 @@ def ranges(cfg: ObstacleConfig) -> FloatArray:
 
 
 def init_standing(cfg: ObstacleConfig) -> StandingState:
-    return StandingState(evidence=np.zeros((len(RATES) + 1, len(ranges(cfg)),
+    return StandingState(evidence=np.zeros((len(LAYER_RATES), len(ranges(cfg)),
                                             CELLS + 2 * SIDE_CELLS)))
 
 
@@ -456,7 +458,7 @@ def hypothesis_evidence(p: CorridorProbe, flow: PointFlow | None, mover_p: Float
         llr = 0.5 * (alt - r_hyp) * share[i]        # the part of the flow across g cancels
         ok = np.isfinite(llr)
         np.add.at(out[j], (k[ok], cells[ok]), llr[ok])
-        if low and j == 0:
+        if low and rate >= 1.0:
             # a low surface standing still: only its points up to LOW_TOP_M are asked
             ok = ok & (height[i, k] <= LOW_TOP_M)
             np.add.at(out[-1], (k[ok], cells[ok]), llr[ok])
@@ -631,7 +633,7 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
     keep = math.exp(-max(dt, 0.0) / cfg.memory_s) if cfg.memory_s > 0.0 else 0.0
     evidence = np.stack([carried(layer, D, rate * travel, keep,
                                  1.0 if rate >= 1.0 else BRAKING_CARRY)
-                         for layer, rate in zip(state.evidence, (*RATES, 1.0))])
+                         for layer, rate in zip(state.evidence, LAYER_RATES)])
     pts = None
     if p is not None:
         pts = parallax(p, flow, mover_p, camera)

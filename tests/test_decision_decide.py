@@ -257,7 +257,8 @@ def test_reacquisition_gate_rejects_a_far_object(default_config: Config,
 def test_only_tracks_that_moved_are_reacquired(default_config: Config) -> None:
     """Hidden before its 3-D state could show motion (fewer than ``cue.motion.min_frames``
     contacts): it comes back as a new track; hidden later, it keeps its id."""
-    cfg = default_config.with_overrides({"hidden": {"keep_s": 2.0}})
+    cfg = default_config.with_overrides({"hidden": {"keep_s": 2.0},
+                                         "cue": {"motion": {"min_frames": 10}}})
     obj0, vel = crossing(8.0, 1.4, 5.0, -0.45)
     early = run(cfg, scene(cfg, obj0, vel, 8.0, 60, hidden=frozenset(range(10, 40))))
     before = {tr.id for tr in early[8][1].tracks}

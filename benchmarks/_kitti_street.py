@@ -45,17 +45,21 @@ class WorldError(Exception):
     """The world or its interpreter cannot be used (one line)."""
 
 
-def default_world() -> Path:
-    """``../shared/worlds/kitti-street`` beside the repository (the main checkout's, when this
-    is a git worktree of it)."""
-    rel = Path("..") / "shared" / "worlds" / "kitti-street"
+def beside_repository(rel: Path, marker: str) -> Path:
+    """``rel`` beside the repository (the main checkout's, when this is a git worktree of it):
+    the first candidate that holds ``marker``, else the repository's own."""
     candidates = [REPO / rel]
     common = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--path-format=absolute",
                              "--git-common-dir"], capture_output=True, text=True, check=False)
     if common.returncode == 0 and common.stdout.strip():
         candidates.append(Path(common.stdout.strip()).parent / rel)
-    found = next((c for c in candidates if (c / "generate.py").is_file()), candidates[0])
+    found = next((c for c in candidates if (c / marker).exists()), candidates[0])
     return found.resolve()
+
+
+def default_world() -> Path:
+    """``../shared/worlds/kitti-street`` beside the repository."""
+    return beside_repository(Path("..") / "shared" / "worlds" / "kitti-street", "generate.py")
 
 
 def check_world(world: Path) -> None:

@@ -29,6 +29,8 @@ from pathlib import Path
 
 from appliance.config import load_config
 from appliance.errors import ApplianceError
+from appliance.evaluation import metrics
+from appliance.evaluation.runfiles import read_warnings
 from appliance.replay import open_recording, replay
 from benchmarks._kitti_street import beside_repository
 
@@ -42,16 +44,9 @@ def default_recordings() -> Path:
 
 
 def onsets(warnings_jsonl: Path) -> tuple[int, int]:
-    """Level-1 and level-2 onsets: events whose level rises to 1 (from 0) or to 2."""
-    n1 = n2 = 0
-    level = 0
-    for line in warnings_jsonl.read_text().splitlines():
-        new = int(json.loads(line)["level"])
-        if new > level:
-            n1 += level == 0 and new >= 1
-            n2 += new == 2
-        level = new
-    return n1, n2
+    """Level-1 onsets (a level from 0) and level-2 onsets, as the evaluation counts them."""
+    l2, l1 = metrics.onsets(read_warnings(warnings_jsonl))
+    return len(l1), len(l2)
 
 
 def census(tracks_jsonl: Path) -> tuple[int, float, int, Counter[str]]:

@@ -20,7 +20,7 @@ def _jsonl(path: Path, rows: list[dict[str, object]]) -> Path:
 
 def test_onsets_count_each_rise_of_the_level(tmp_path: Path) -> None:
     levels = [1, 2, 1, 0, 2, 0, 1]
-    path = _jsonl(tmp_path / "warnings.jsonl", [{"t": float(i), "level": lv}
+    path = _jsonl(tmp_path / "warnings.jsonl", [{"t": float(i), "frame": i, "level": lv}
                                                  for i, lv in enumerate(levels)])
     # level 1 from 0: at 0, 4 (straight to 2) and 6; level 2: at 1 (from 1) and 4 (from 0)
     assert real_footage.onsets(path) == (3, 2)

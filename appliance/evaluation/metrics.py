@@ -126,7 +126,7 @@ def clip_box(b: NDArray[np.float64], width: int, height: int) -> NDArray[np.floa
                      min(b[3], float(height))])
 
 
-def _onsets(warnings: list[WarningRow]) -> tuple[list[WarningRow], list[WarningRow]]:
+def onsets(warnings: list[WarningRow]) -> tuple[list[WarningRow], list[WarningRow]]:
     """(level-2 onsets, level-1-or-higher onsets from 0), in time order."""
     l2, l1 = [], []
     prev_level = 0
@@ -293,7 +293,7 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
             "track_ids": sorted(t for t, oid in owner.items() if oid == o.id),
         })
 
-    l2_onsets, l1_onsets = _onsets(warnings)
+    l2_onsets, l1_onsets = onsets(warnings)
     ct = truth.collision_t if truth.collision else None
     colliding = None
     if ct is not None:

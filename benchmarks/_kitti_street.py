@@ -53,7 +53,7 @@ def beside_repository(rel: Path, marker: str) -> Path:
                              "--git-common-dir"], capture_output=True, text=True, check=False)
     if common.returncode == 0 and common.stdout.strip():
         candidates.append(Path(common.stdout.strip()).parent / rel)
-    found = next((c for c in candidates if (c / marker).exists()), candidates[0])
+    found = next((c for c in candidates if (c / marker).is_file()), candidates[0])
     return found.resolve()
 
 

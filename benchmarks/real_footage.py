@@ -19,7 +19,6 @@ Where the default directory is missing the benchmark says so and is skipped.
 from __future__ import annotations
 
 import argparse
-import json
 import re
 import statistics
 import sys
@@ -30,7 +29,7 @@ from pathlib import Path
 from appliance.config import load_config
 from appliance.errors import ApplianceError
 from appliance.evaluation import metrics
-from appliance.evaluation.runfiles import read_warnings
+from appliance.evaluation.runfiles import json_rows, read_warnings
 from appliance.replay import open_recording, replay
 from benchmarks._kitti_street import beside_repository
 
@@ -54,8 +53,7 @@ def census(tracks_jsonl: Path) -> tuple[int, float, int, Counter[str]]:
     reasons: Counter[str] = Counter()
     ids: set[int] = set()
     times: list[float] = []
-    for line in tracks_jsonl.read_text().splitlines():
-        row = json.loads(line)
+    for _, row in json_rows(tracks_jsonl):
         times.append(float(row["t"]))
         for tr in row["tracks"]:
             ids.add(int(tr["id"]))

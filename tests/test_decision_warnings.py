@@ -265,7 +265,8 @@ def test_every_track_says_why_it_warns_or_not(default_config: Config) -> None:
     cases = {
         "not moving over ground": replace(base, moving=False),
         "box 0.10 m tall, below 0.30 m": replace(base, height_m=0.1),
-        f"probability 0.50 below {cfg.min_probability:.2f}": replace(base, report=replace(base.report, probability=0.5)),
+        f"probability 0.50 below {cfg.min_probability:.2f}":
+            replace(base, report=replace(base.report, probability=0.5)),
         "path misses corridor by 0.9 m": replace(base, on_course=False, on_course_wide=False,
                                                  miss_m=0.94),
         "no time to collision": threat(1, None),

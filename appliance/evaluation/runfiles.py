@@ -104,7 +104,9 @@ def _box(v: Any, where: str, key: str) -> Box:
     return (b[0], b[1], b[2], b[3])  # type: ignore[return-value]
 
 
-def _lines(path: Path) -> list[tuple[int, dict[str, Any]]]:
+def json_rows(path: Path) -> list[tuple[int, dict[str, Any]]]:
+    """(line number, object) of each non-empty line of a JSON-lines file; a missing file or a
+    bad line is a ``UsageError`` naming the file and the line."""
     if not path.is_file():
         raise UsageError(f"{path}: missing (is this the output directory of a replay or run?)")
     rows = []
@@ -124,7 +126,7 @@ def _lines(path: Path) -> list[tuple[int, dict[str, Any]]]:
 
 def read_tracks(path: Path) -> list[TrackRow]:
     out: list[TrackRow] = []
-    for n, row in _lines(path):
+    for n, row in json_rows(path):
         where = f"{path}:{n}"
         try:
             frame, tracks = int(row["frame"]), row["tracks"]
@@ -145,7 +147,7 @@ def read_tracks(path: Path) -> list[TrackRow]:
 
 def read_warnings(path: Path) -> list[WarningRow]:
     out: list[WarningRow] = []
-    for n, row in _lines(path):
+    for n, row in json_rows(path):
         where = f"{path}:{n}"
         try:
             level = int(row["level"])

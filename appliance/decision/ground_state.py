@@ -9,11 +9,12 @@ the prediction step.
 
 Robustness, where real particle clouds need it: a contact further than
 ``gate_sigmas`` from the prediction is skipped (a stray particle row), five in a
-row restart the state; the filter has a fading memory (``memory_s``, filterpy's
-``alpha``) so a state started on a wrong association recovers; a new state takes
-its velocity across the line of sight from the track's bearing rate
-(:func:`velocity_prior`) instead of assuming 0, so a crossing car has the right
-path from its first frames.
+row restart the state; where the object is known to reach below its cluster, a
+contact farther than predicted counts less (:func:`one_sided`); the filter has a
+fading memory (``memory_s``, filterpy's ``alpha``) so a state started on a wrong
+association recovers; a new state takes its velocity across the line of sight
+from the track's bearing rate (:func:`velocity_prior`) instead of assuming 0, so a
+crossing car has the right path from its first frames.
 
 Refined pitch: the body pitch b (rad, nose down positive) that CAN cannot see
 (road bumps) is the accumulated difference between the refined and the prior
@@ -59,6 +60,8 @@ class GroundModel:
     initial_velocity_std_m_s: float = 8.0  # m/s, initial std of the velocity over ground
     gate_sigmas: float = 3.5             # a contact further than this (Mahalanobis) is an outlier
     memory_s: float = 1.0                # s, fading memory: older contacts count less (0: none)
+    far_factor: float = 3.0              # a contact reading farther than predicted: its range std
+                                         #   this many times larger (feet found too high)
 
 
 @dataclass(frozen=True)
@@ -453,6 +456,24 @@ def ground_predict(g: GroundTrack, dt: float, sensors: SensorSample, cfg: Ground
     return replace(g, x=x, P=P)
 
 
+def one_sided(g: GroundTrack, contact: GroundContact, factor: float) -> GroundContact:
+    """``contact`` with its range std ``factor`` times larger where it reads farther than the
+    predicted position. Its range error is one-sided: the foot of an object is found too high
+    (thin legs in motion lose their flow, the particles gather on the hips) and reads too far,
+    but never below the feet, where the road's flow starts. The range direction is the
+    principal axis of the contact's covariance (the back-projected row's error)."""
+    if factor <= 1.0:
+        return contact
+    lam, vecs = np.linalg.eigh(contact.R)
+    axis = vecs[:, 1]
+    if float(axis @ contact.z) < 0.0:
+        axis = -axis
+    if float(axis @ (contact.z - g.x[:2])) <= 0.0:
+        return contact
+    wider = (factor ** 2 - 1.0) * lam[1] * np.outer(axis, axis)
+    return GroundContact(z=contact.z, R=contact.R + wider)
+
+
 def ground_update(g: GroundTrack, contact: GroundContact, t: float) -> GroundTrack:
     x, P = update(g.x, g.P, contact.z, contact.R, h_position(len(g.x)))
     return replace(g, x=x, P=P, t_update=t, updates=g.updates + 1, rejected=0, P_measured=P)
@@ -466,12 +487,15 @@ def innovation_sigmas(g: GroundTrack, contact: GroundContact) -> float:
 
 
 def ground_absorb(g: GroundTrack | None, contact: GroundContact, t: float, cfg: GroundModel,
-                  prior: tuple[FloatArray, FloatArray] | None = None) -> GroundTrack:
+                  prior: tuple[FloatArray, FloatArray] | None = None,
+                  above_feet: bool = False) -> GroundTrack:
     """Start, update or (outlier) skip: a contact further than ``gate_sigmas`` from the
     prediction is skipped once the state has 3 contacts; 5 outliers in a row restart it
     (the object was lost and found elsewhere, or the state went wrong)."""
     if g is None:
         return ground_init(contact, t, cfg, prior)
+    if above_feet:
+        contact = one_sided(g, contact, cfg.far_factor)
     if g.updates >= 3 and innovation_sigmas(g, contact) > cfg.gate_sigmas:
         if g.rejected + 1 >= 5:
             return ground_init(contact, t, cfg, prior)

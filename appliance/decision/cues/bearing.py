@@ -34,6 +34,13 @@ class BearingState:
         """Least-squares slope (rad/s) of the history; None with fewer than 3 frames."""
         return bearing_rate(self.history)
 
+    @property
+    def rate_std(self) -> float | None:
+        """The slope's standard error (rad/s) from the fit's residuals; None with fewer than 3
+        frames. A young track's first boxes (a sliver of the object, growing) turn its
+        bearing more than the object does: few points and a large residual."""
+        return bearing_rate_std(self.history)
+
 
 def bearing_rate(hist: tuple[tuple[float, float], ...]) -> float | None:
     if len(hist) < 3:
@@ -43,6 +50,18 @@ def bearing_rate(hist: tuple[tuple[float, float], ...]) -> float | None:
     if ts[-1] - ts[0] <= 0.0:
         return None
     return float(np.polyfit(ts - ts[-1], bs, 1)[0])
+
+
+def bearing_rate_std(hist: tuple[tuple[float, float], ...]) -> float | None:
+    if len(hist) < 3:
+        return None
+    ts = np.array([h[0] for h in hist])
+    bs = np.unwrap(np.array([h[1] for h in hist]))
+    spread = float(np.sum((ts - ts.mean()) ** 2))
+    if spread <= 0.0:
+        return None
+    residual = bs - np.polyval(np.polyfit(ts - ts[-1], bs, 1), ts - ts[-1])
+    return float(np.sqrt(np.sum(residual ** 2) / (len(hist) - 2) / spread))
 
 
 class Bearing:

@@ -5,7 +5,9 @@ constant velocity while the track has no contact); a ground contact then updates
 starts it, with its velocity across the line of sight from the bearing rate
 (:func:`ground_state.velocity_prior`). A new track whose first contact continues a hidden
 one (``x.found``) takes that one's coasted state. Without a contact for ``coast_s`` the
-state is dropped.
+state is dropped. For ``LOWERED_MEMORY_S`` after the foot cue last found the object reaching
+below its cluster, a contact reading farther than predicted counts less
+(:func:`ground_state.one_sided`): its cluster is known to stop above its feet.
 """
 
 from __future__ import annotations
@@ -25,6 +27,9 @@ from appliance.decision.ground_state import (
     velocity_prior,
 )
 
+LOWERED_MEMORY_S = 1.0
+RATE_STD_FLOOR = 0.01    # rad/s, the bearing rate is known to this at best (velocity_prior)
+
 
 @dataclass(frozen=True)
 class GroundState:
@@ -32,6 +37,7 @@ class GroundState:
 
     ground: GroundTrack | None
     fresh: bool
+    lowered_t: float | None = None
 
 
 def ground_model(cfg: GroundCueConfig) -> GroundModel:
@@ -51,12 +57,14 @@ class GroundContact:
             # no contact in the frame before: coasting, at constant velocity
             g = ground_predict(g, f.dt, f.sensors, model, steady=f.t - g.t_update > 1.5 * f.dt)
         contact = x.meas.contact
+        lowered_t = prev.lowered_t if prev is not None else None
         low = x.now.get("foot")
         if low is not None and low.rows > 0 and x.track.cluster is not None \
                 and x.track.confirmed and not any(x.meas.sides):
             # the object reaches below its cluster: its feet are lower (``object_foot.py``)
             contact = None if low.at_edge else lowered_contact(
                 x.track.cluster, f, model, contact, low.bottom)
+            lowered_t = f.t
         if contact is not None:
             if x.found is not None and x.found.ground is not None:
                 # the occluded object is back: its coasted state takes the contact
@@ -64,10 +72,13 @@ class GroundContact:
             else:
                 bearings = x.now.get("bearing")
                 rate = bearings.rate if bearings is not None else None
-                prior = None if rate is None else velocity_prior(
-                    contact.z, rate, f.speed, f.yaw_rate, (f.mount.x_m, f.mount.y_m), model)
-                g = ground_absorb(g, contact, f.t, model, prior)
+                rate_std = bearings.rate_std if bearings is not None else None
+                prior = None if rate is None or rate_std is None else velocity_prior(
+                    contact.z, rate, f.speed, f.yaw_rate, (f.mount.x_m, f.mount.y_m), model,
+                    max(rate_std, RATE_STD_FLOOR))
+                above = lowered_t is not None and f.t - lowered_t <= LOWERED_MEMORY_S
+                g = ground_absorb(g, contact, f.t, model, prior, above_feet=above)
         fresh = g is not None and g.t_update == f.t
         if g is not None and not fresh and f.t - g.t_update > cfg.coast_s:
             g = None
-        return GroundState(ground=g, fresh=fresh)
+        return GroundState(ground=g, fresh=fresh, lowered_t=lowered_t)

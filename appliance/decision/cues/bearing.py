@@ -42,26 +42,29 @@ class BearingState:
         return bearing_rate_std(self.history)
 
 
-def bearing_rate(hist: tuple[tuple[float, float], ...]) -> float | None:
+def bearing_fit(hist: tuple[tuple[float, float], ...]) -> tuple[float, float] | None:
+    """Least-squares slope (rad/s) of the history and its standard error from the fit's
+    residuals (rad/s); None with fewer than 3 frames or no time between them."""
     if len(hist) < 3:
         return None
     ts = np.array([h[0] for h in hist])
     bs = np.unwrap(np.array([h[1] for h in hist]))
     if ts[-1] - ts[0] <= 0.0:
         return None
-    return float(np.polyfit(ts - ts[-1], bs, 1)[0])
+    slope, intercept = np.polyfit(ts - ts[-1], bs, 1)
+    residual = bs - (slope * (ts - ts[-1]) + intercept)
+    spread = float(np.sum((ts - ts.mean()) ** 2))
+    return float(slope), float(np.sqrt(np.sum(residual ** 2) / (len(hist) - 2) / spread))
+
+
+def bearing_rate(hist: tuple[tuple[float, float], ...]) -> float | None:
+    fit = bearing_fit(hist)
+    return None if fit is None else fit[0]
 
 
 def bearing_rate_std(hist: tuple[tuple[float, float], ...]) -> float | None:
-    if len(hist) < 3:
-        return None
-    ts = np.array([h[0] for h in hist])
-    bs = np.unwrap(np.array([h[1] for h in hist]))
-    spread = float(np.sum((ts - ts.mean()) ** 2))
-    if spread <= 0.0:
-        return None
-    residual = bs - np.polyval(np.polyfit(ts - ts[-1], bs, 1), ts - ts[-1])
-    return float(np.sqrt(np.sum(residual ** 2) / (len(hist) - 2) / spread))
+    fit = bearing_fit(hist)
+    return None if fit is None else fit[1]
 
 
 class Bearing:

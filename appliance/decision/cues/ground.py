@@ -27,7 +27,7 @@ from appliance.decision.ground_state import (
     velocity_prior,
 )
 
-LOWERED_MEMORY_S = 1.0
+LOWERED_MEMORY_S = 1.0   # s, after the foot cue last lowered a contact: its contacts one-sided
 RATE_STD_FLOOR = 0.01    # rad/s, the bearing rate is known to this at best (velocity_prior)
 
 

@@ -450,19 +450,21 @@ def test_the_bearing_rate_is_known_as_well_as_its_fit() -> None:
     """A steady bearing gives a precise rate; a young track whose first box was a sliver of
     the object (its bearing off by 0.015 rad) gives a rate that far off, and a standard
     error that says so: the 3-D state it starts may then follow its contacts across."""
-    from appliance.decision.cues.bearing import bearing_rate, bearing_rate_std
+    from appliance.decision.cues.bearing import bearing_fit
 
     ts = np.arange(10) / 25.0
     rng = np.random.default_rng(0)
     steady = tuple(zip(ts, 0.19 - 0.02 * ts + rng.normal(0.0, 0.0005, 10)))
-    rate, std = bearing_rate(steady), bearing_rate_std(steady)
-    assert rate is not None and std is not None
+    fit = bearing_fit(steady)
+    assert fit is not None
+    rate, std = fit
     assert rate == pytest.approx(-0.02, abs=3 * std) and std < 0.01
     sliver = ((0.0, 0.2148), (0.04, 0.1984), (0.08, 0.1914), (0.12, 0.1877))
-    rate, std = bearing_rate(sliver), bearing_rate_std(sliver)
-    assert rate is not None and std is not None
+    fit = bearing_fit(sliver)
+    assert fit is not None
+    rate, std = fit
     assert rate < -0.2 and std > 0.04
-    assert bearing_rate_std(sliver[:2]) is None
+    assert bearing_fit(sliver[:2]) is None
 
 
 def test_a_fast_mover_is_judged_by_the_speed_it_moves_at_least() -> None:

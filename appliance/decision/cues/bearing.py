@@ -34,17 +34,12 @@ class BearingState:
         """Least-squares slope (rad/s) of the history; None with fewer than 3 frames."""
         return bearing_rate(self.history)
 
-    @property
-    def rate_std(self) -> float | None:
-        """The slope's standard error (rad/s) from the fit's residuals; None with fewer than 3
-        frames. A young track's first boxes (a sliver of the object, growing) turn its
-        bearing more than the object does: few points and a large residual."""
-        return bearing_rate_std(self.history)
-
 
 def bearing_fit(hist: tuple[tuple[float, float], ...]) -> tuple[float, float] | None:
     """Least-squares slope (rad/s) of the history and its standard error from the fit's
-    residuals (rad/s); None with fewer than 3 frames or no time between them."""
+    residuals (rad/s); None with fewer than 3 frames or no time between them. A young track's
+    first boxes (a sliver of the object, growing) turn its bearing more than the object does:
+    few points and a large residual."""
     if len(hist) < 3:
         return None
     ts = np.array([h[0] for h in hist])
@@ -60,11 +55,6 @@ def bearing_fit(hist: tuple[tuple[float, float], ...]) -> tuple[float, float] | 
 def bearing_rate(hist: tuple[tuple[float, float], ...]) -> float | None:
     fit = bearing_fit(hist)
     return None if fit is None else fit[0]
-
-
-def bearing_rate_std(hist: tuple[tuple[float, float], ...]) -> float | None:
-    fit = bearing_fit(hist)
-    return None if fit is None else fit[1]
 
 
 class Bearing:

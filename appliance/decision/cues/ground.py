@@ -17,6 +17,7 @@ from typing import ClassVar
 
 from appliance.config import GroundCueConfig
 from appliance.decision.cues.base import CueInput
+from appliance.decision.cues.bearing import bearing_fit
 from appliance.decision.frame import lowered_contact
 from appliance.decision.ground_state import (
     GroundModel,
@@ -71,11 +72,10 @@ class GroundContact:
                 g = ground_update(x.found.ground, contact, f.t)
             else:
                 bearings = x.now.get("bearing")
-                rate = bearings.rate if bearings is not None else None
-                rate_std = bearings.rate_std if bearings is not None else None
-                prior = None if rate is None or rate_std is None else velocity_prior(
-                    contact.z, rate, f.speed, f.yaw_rate, (f.mount.x_m, f.mount.y_m), model,
-                    max(rate_std, RATE_STD_FLOOR))
+                fit = bearing_fit(bearings.history) if bearings is not None else None
+                prior = None if fit is None else velocity_prior(
+                    contact.z, fit[0], f.speed, f.yaw_rate, (f.mount.x_m, f.mount.y_m), model,
+                    max(fit[1], RATE_STD_FLOOR))
                 above = lowered_t is not None and f.t - lowered_t <= LOWERED_MEMORY_S
                 g = ground_absorb(g, contact, f.t, model, prior, above_feet=above)
         fresh = g is not None and g.t_update == f.t

@@ -172,11 +172,11 @@ def test_weak_or_static_tracks_raise_no_level(default_config: Config) -> None:
     assert events == [] and max(levels) == 0
     # a hidden track assessed from its coasted state has its own bar, on its highest
     # probability while it was seen
-    for p, level in ((HIDDEN_MIN_PROBABILITY + 0.02, 2), (HIDDEN_MIN_PROBABILITY - 0.02, None)):
+    for p, issued in ((HIDDEN_MIN_PROBABILITY + 0.02, [2]), (HIDDEN_MIN_PROBABILITY - 0.02, [])):
         hidden = TrackThreat(replace(threat(1, 1.0).report, probability=p), True, True,
                              coasted=True)
         levels, events = run(cfg, [(hidden,)] * 10)
-        assert [e.level for e in events] == ([] if level is None else [level])
+        assert [e.level for e in events] == issued
     flat = TrackThreat(threat(1, 1.0).report, True, True, height_m=0.1)   # a strip of road
     levels, events = run(cfg, [(flat,)] * 10)
     assert events == [] and max(levels) == 0

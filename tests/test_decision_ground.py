@@ -178,11 +178,12 @@ def test_path_prediction_collision_and_near_miss(default_config: Config) -> None
     # 2 s later it would have crossed: passes 1.5 m in front of the car... after it
     miss = predict_path(np.array([23.9, -5.0]), np.array([0.0, 5.0]), 10.0, 0.0, mount,
                         margin=0.3, radius=0.2, horizon_s=6.0)
-    assert miss.ttc is None and miss.closest > 1.0
-    # lead car driving away: no contact
+    assert miss.ttc is None and miss.closest > 1.0 and not miss.ahead   # it passes beside
+    # lead car driving away: no contact; its gap is kept ahead in the lane, the one it has now
     away = predict_path(np.array([20.0, 0.0]), np.array([15.0, 0.0]), 10.0, 0.0, mount,
                         0.3, 1.0, 6.0)
-    assert away.ttc is None
+    assert away.ttc is None and away.ahead
+    assert away.closest == pytest.approx(20.0 - 1.0 - mount.vehicle_front_m)
     # in a left bend the ego arc reaches an object on the left that a straight path misses
     # (the front bumper's circle about the turn centre (0, 50 m) passes through (20, 4))
     bend = predict_path(np.array([20.0, 4.0]), np.zeros(2), 10.0, 0.2, mount, 0.3, 0.3, 6.0)

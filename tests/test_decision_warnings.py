@@ -269,6 +269,8 @@ def test_every_track_says_why_it_warns_or_not(default_config: Config) -> None:
             replace(base, report=replace(base.report, probability=0.4)),
         "path misses corridor by 0.9 m": replace(base, on_course=False, on_course_wide=False,
                                                  miss_m=0.94),
+        "path stays 14.0 m ahead in the corridor": replace(
+            base, on_course=False, on_course_wide=False, miss_m=14.04, miss_ahead=True),
         "no time to collision": threat(1, None),
         "ttc 3.4 s above 3.1 s": threat(1, 3.4),   # the caution threshold looks 2 frames ahead
     }

@@ -51,7 +51,8 @@ class TrackThreat:
     report: its row of ``tracks.jsonl`` (ttc_s None: no contact predicted, or unknown);
     on_course: its path meets the corridor (``warning.corridor_margin_m``); on_course_wide: the
     corridor widened by ``CORRIDOR_HYSTERESIS_M``; miss_m: by how much its path misses the
-    corridor, where known; moving: it has shown independent motion over ground; speed_m_s: the
+    corridor, where known; miss_ahead: that miss is a gap kept ahead in the corridor (the path
+    stays in front of the car), not one beside it; moving: it has shown independent motion over ground; speed_m_s: the
     speed over ground it moves at least, at ``VELOCITY_SIGNIFICANCE`` std (None without a 3-D
     state); height_m: the tallest its box has been at its depth, None where its depth is
     unknown; coasted: a hidden track assessed from its coasted 3-D state; evidence: the
@@ -66,6 +67,7 @@ class TrackThreat:
     on_course: bool
     on_course_wide: bool
     miss_m: float | None = None
+    miss_ahead: bool = False
     moving: bool = True
     speed_m_s: float | None = None
     height_m: float | None = None
@@ -98,6 +100,7 @@ def assess(track: ImageTrack, cues: TrackCues, f: FrameContext, cfg: WarningConf
     scale = scale_state.ttc if scale_state is not None and not coasted else None
     distance: float | None = None
     miss: float | None = None
+    miss_ahead = False
     ground_est: tuple[float, float] | None = None
     on_course = on_wide = False
     depth: float | None = None
@@ -123,6 +126,7 @@ def assess(track: ImageTrack, cues: TrackCues, f: FrameContext, cfg: WarningConf
                             acc, f.braking)
         on_course, on_wide = base.ttc is not None, wide.ttc is not None
         miss = None if on_course else base.closest
+        miss_ahead = not on_course and base.ahead
         ttc_g = base.ttc if base.ttc is not None else wide.ttc
         if ttc_g is not None:
             ground_est = (ttc_g, ground_ttc_std(pos, g.P, ttc_g, speed, vel))
@@ -174,5 +178,5 @@ def assess(track: ImageTrack, cues: TrackCues, f: FrameContext, cfg: WarningConf
     least = None if g is None or not ego_known else significant_speed(
         g.velocity, g.measured_covariance, VELOCITY_SIGNIFICANCE)
     return TrackThreat(report=report, on_course=on_course, on_course_wide=on_wide, miss_m=miss,
-                       moving=moving, speed_m_s=least, height_m=height, coasted=coasted,
+                       miss_ahead=miss_ahead, moving=moving, speed_m_s=least, height_m=height, coasted=coasted,
                        ego_known=ego_known)

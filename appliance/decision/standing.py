@@ -762,6 +762,7 @@ def obstacle_threat(ob: Obstacle, f: FrameContext, cfg: WarningConfig,
     )
     return TrackThreat(report=report, on_course=base.ttc is not None,
                        on_course_wide=wide.ttc is not None,
-                       miss_m=None if base.ttc is not None else base.closest, moving=False,
+                       miss_m=None if base.ttc is not None else base.closest,
+                       miss_ahead=base.ttc is None and base.ahead, moving=False,
                        speed_m_s=0.0, standing=True, roadside=ob.at_roadside, closing=ob.closing,
                        stopped=ob.stopped, ego_known=f.ego_known)

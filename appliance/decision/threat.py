@@ -53,10 +53,13 @@ STEP_S = 0.05  # s, time resolution of the path prediction
 
 @dataclass(frozen=True)
 class PathPrediction:
-    """ttc: first contact with the widened outline (s) or None; closest: smallest gap (m, >= 0)."""
+    """ttc: first contact with the widened outline (s) or None; closest: smallest gap (m, >= 0);
+    ahead: at that closest approach the object is in front of the car within the corridor's
+    width (the path stays ahead in the lane: a lead car not closing in) rather than beside it."""
 
     ttc: float | None
     closest: float
+    ahead: bool = False
 
 
 def outline_gap(q: FloatArray, mount: MountConfig, margin: float) -> FloatArray:
@@ -137,7 +140,10 @@ def predict_path(position: NDArray[np.floating], velocity: NDArray[np.floating],
     gap = outline_gap(q, mount, margin) - radius
     hit = np.flatnonzero(gap <= 0.0)
     ttc = float(tau[hit[0]]) if len(hit) else None
-    return PathPrediction(ttc=ttc, closest=float(max(np.min(gap), 0.0)))
+    k = int(np.argmin(gap))
+    ahead = bool(q[k, 0] > mount.vehicle_front_m
+                 and abs(q[k, 1]) <= 0.5 * mount.vehicle_width_m + margin + radius)
+    return PathPrediction(ttc=ttc, closest=float(max(gap[k], 0.0)), ahead=ahead)
 
 
 def ground_ttc_std(position: NDArray[np.floating], P: NDArray[np.floating], ttc: float,

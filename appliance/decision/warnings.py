@@ -110,8 +110,11 @@ def indication(th: TrackThreat, threshold: float, cfg: WarningConfig) -> str | N
     if p < p_min and not fast and not th.standing:
         return f"probability {p:.2f} below {p_min:.2f}"
     if not th.on_course:
-        return "path misses corridor" if th.miss_m is None \
-            else f"path misses corridor by {th.miss_m:.1f} m"
+        if th.miss_m is None:
+            return "path misses corridor"
+        if th.miss_ahead:
+            return f"path stays {th.miss_m:.1f} m ahead in the corridor"
+        return f"path misses corridor by {th.miss_m:.1f} m"
     if th.ttc is None:
         return "no time to collision"
     if th.ttc > threshold:

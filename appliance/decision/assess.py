@@ -52,11 +52,11 @@ class TrackThreat:
     on_course: its path meets the corridor (``warning.corridor_margin_m``); on_course_wide: the
     corridor widened by ``CORRIDOR_HYSTERESIS_M``; miss_m: by how much its path misses the
     corridor, where known; miss_ahead: that miss is a gap kept ahead in the corridor (the path
-    stays in front of the car), not one beside it; moving: it has shown independent motion over ground; speed_m_s: the
-    speed over ground it moves at least, at ``VELOCITY_SIGNIFICANCE`` std (None without a 3-D
-    state); height_m: the tallest its box has been at its depth, None where its depth is
-    unknown; coasted: a hidden track assessed from its coasted 3-D state; evidence: the
-    probability tested against ``min_probability`` when it is not the track's own
+    stays in front of the car), not one beside it; moving: it has shown independent motion over
+    ground; speed_m_s: the speed over ground it moves at least, at ``VELOCITY_SIGNIFICANCE``
+    std (None without a 3-D state); height_m: the tallest its box has been at its depth, None
+    where its depth is unknown; coasted: a hidden track assessed from its coasted 3-D state;
+    evidence: the probability tested against ``min_probability`` when it is not the track's own
     (:func:`warnings.pool_covered`), else None; standing: an obstacle standing in the path
     (``standing.py``), static by construction, its evidence its parallax; roadside: such an
     obstacle continues the roadside (the outside of a bend the path is predicted straight into);
@@ -178,5 +178,5 @@ def assess(track: ImageTrack, cues: TrackCues, f: FrameContext, cfg: WarningConf
     least = None if g is None or not ego_known else significant_speed(
         g.velocity, g.measured_covariance, VELOCITY_SIGNIFICANCE)
     return TrackThreat(report=report, on_course=on_course, on_course_wide=on_wide, miss_m=miss,
-                       miss_ahead=miss_ahead, moving=moving, speed_m_s=least, height_m=height, coasted=coasted,
-                       ego_known=ego_known)
+                       miss_ahead=miss_ahead, moving=moving, speed_m_s=least, height_m=height,
+                       coasted=coasted, ego_known=ego_known)

@@ -15,7 +15,9 @@ run and one per scenario over its seeds, the pooled figures, and a table pooled 
 * a mover is a confirmed track within 10 frames of being >= 15 px tall, visible and moving
   over the ground (> 0.3 m/s);
 * median relative TTC error <= 20 % and distance error <= 15 % in the last 3 s;
-* ghost tracks (confirmed tracks never on a mover, no target) per minute (own world only).
+* ghost tracks (confirmed tracks never on a mover, no target) per minute (own world only);
+* what kept the level 2 from being in time, both worlds: the colliding object's frames 3.5-1.5 s
+  before contact by the state of the track on it (``appliance/evaluation/late.py``).
 
 Options: ``--seeds N`` (3) from ``--first-seed S`` (0), ``--scenarios a,b`` (names of either
 world), ``--keep DIR`` (recordings and runs kept in ``DIR/<world>/recordings`` and
@@ -46,7 +48,7 @@ from appliance.batch.task import Job, JobResult
 from appliance.code_digest import code_digest
 from appliance.config import load_config
 from appliance.errors import ApplianceError
-from appliance.evaluation.report import print_table, table_row
+from appliance.evaluation.report import late_of_run, print_table, table_row
 from appliance.evaluation import pooled
 from benchmarks import _kept
 from benchmarks import _kitti_street as ks
@@ -202,6 +204,10 @@ def collect(world: World, runs: dict[str, JobResult], python: str | None,
                                                            "error": "not evaluated"}
         elif rec in scores:
             res = ks.as_evaluation(scores[rec], ks.duration_s(world.rec_dir / rec))
+            try:
+                res["late_reasons"] = late_of_run(world.rec_dir / rec, world.run_dir / rec)
+            except ApplianceError as exc:    # scored all the same; the breakdown is extra
+                world.errors.append(f"{rec}: {exc}")
         else:
             res = {"scenario": scenario, "error": "not scored"}
         res["seed"] = seed

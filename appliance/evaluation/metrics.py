@@ -260,7 +260,7 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
                 v = iou(tr.bbox, box)
                 if v >= best_iou:
                     best, best_iou = tr, v
-                if v >= IOU_MATCH or _on_part_of(tr.bbox, box):
+                if v >= IOU_MATCH or on_part_of(tr.bbox, box):
                     on_mover.add(tr.id)
             if best is not None:
                 match[o.id][int(f)] = best
@@ -295,10 +295,7 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
 
     l2_onsets, l1_onsets = onsets(warnings)
     ct = truth.collision_t if truth.collision else None
-    colliding = None
-    if ct is not None:
-        named = [o for o in scored if o.id == truth.collision_object]
-        colliding = named[0] if named else _colliding_object(movers, ct, frame_times, mount)
+    colliding = colliding_object(truth, frame_times, mount)
 
     def on_object(w: WarningRow, o: TruthObject) -> bool:
         # the warning's box matches the object then, or its track matched the object within
@@ -389,7 +386,7 @@ def evaluate(truth: Truth, tracks: list[TrackRow], warnings: list[WarningRow],
     return result
 
 
-def _on_part_of(track: Box, mover: NDArray[np.float64]) -> bool:
+def on_part_of(track: Box, mover: NDArray[np.float64]) -> bool:
     """A track box on part of a mover's box without matching it (ghost tracks, module
     docstring): its centre inside, or at least ``INSIDE_SHARE`` of it inside."""
     cu, cv = 0.5 * (track[0] + track[2]), 0.5 * (track[1] + track[3])
@@ -422,8 +419,16 @@ def _frame_at(frame_times: NDArray[np.float64], t: float) -> int:
     return int(np.clip(np.searchsorted(frame_times, t), 0, len(frame_times) - 1))
 
 
-def _colliding_object(movers: list[TruthObject], ct: float, frame_times: NDArray[np.float64],
-                      mount: MountConfig) -> TruthObject | None:
+def colliding_object(truth: Truth, frame_times: NDArray[np.float64], mount: MountConfig
+                     ) -> TruthObject | None:
+    """The object the drive collides with (module docstring), None without a collision."""
+    ct = truth.collision_t if truth.collision else None
+    if ct is None:
+        return None
+    named = [o for o in truth.objects if o.id == truth.collision_object]
+    if named:
+        return named[0]
+    movers = [o for o in truth.objects if o.moving]
     if not movers:
         return None
     f = _frame_at(frame_times, ct)

@@ -16,6 +16,9 @@ import statistics
 from collections.abc import Callable, Sequence
 from typing import Any
 
+from appliance.evaluation.late import LATE_WINDOW_S, describe, pooled_counts
+from appliance.evaluation.metrics import TARGETS
+
 Result = dict[str, Any]
 
 COLUMNS = (
@@ -127,6 +130,8 @@ def totals(results: Sequence[Result]) -> dict[str, Any]:
         "ghost_minutes": sum(r["duration_s"] for r in ghosts) / 60.0,
         "runs_meeting_every_target": sum(
             1 for r in ok if not any(v is False for v in r["targets"].values())),
+        "late_runs": sum(1 for r in coll if r.get("late_reasons")),
+        "late_counts": dict(pooled_counts(coll)),
     }
 
 
@@ -155,6 +160,11 @@ def totals_lines(t: dict[str, Any]) -> list[str]:
         lines.append(f"ghost tracks (confirmed, never on a mover): {t['ghost_tracks']} in "
                      f"{t['ghost_minutes']:.1f} min ({t['ghost_tracks'] / t['ghost_minutes']:.2f}"
                      f"/min), {t['ghost_track_frames']} track-frames")
+    if t["late_runs"]:
+        lo, hi = LATE_WINDOW_S + TARGETS["lead_time_s"], TARGETS["lead_time_s"]
+        lines.append(f"the colliding object {lo:g}-{hi:g} s before contact, when a level 2 is in "
+                     f"time ({sum(t['late_counts'].values())} frames of {t['late_runs']} runs): "
+                     f"{describe(t['late_counts'])}")
     lines.append(f"runs meeting every target: {t['runs_meeting_every_target']}/{t['runs']}")
     return lines
 

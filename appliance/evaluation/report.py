@@ -20,6 +20,7 @@ from typing import Any, TextIO
 from appliance.config import load_config
 from appliance.errors import UsageError
 from appliance.evaluation.columns import COLUMNS
+from appliance.evaluation.late import describe, explain_late
 from appliance.evaluation.metrics import evaluate
 from appliance.evaluation.plot import plot_timeline
 from appliance.evaluation.runfiles import parse_truth, read_tracks, read_warnings
@@ -49,6 +50,8 @@ def evaluate_run(recording: str | Path, run_dir: str | Path, plot: bool = True) 
     cam = rec.meta.camera
     result = evaluate(truth, tracks, warnings, rec.frame_times, (cam.width, cam.height),
                       rec.meta.mount, cfg.warning.corridor_margin_m, cfg.warning.ttc_caution_s)
+    result["late_reasons"] = explain_late(truth, tracks, rec.frame_times,
+                                          (cam.width, cam.height), rec.meta.mount)
     result["recording"] = str(rec.path)
     result["run_dir"] = str(run)
     (run / "evaluation.json").write_text(json.dumps(result, indent=2) + "\n")
@@ -56,6 +59,20 @@ def evaluate_run(recording: str | Path, run_dir: str | Path, plot: bool = True) 
         plot_timeline(run / "timeline.png", truth, tracks, warnings, rec.frame_times,
                       rec.meta.mount, result)
     return result
+
+
+def late_of_run(recording: str | Path, run_dir: str | Path) -> dict[str, Any] | None:
+    """What kept a level 2 from being in time in ``run_dir`` (``late.explain_late``), for a
+    run scored elsewhere (another world's scorer); None without a collision or a truth."""
+    cfg = load_config()
+    rec = Recording(recording, cfg)
+    truth_raw = rec.truth()
+    if truth_raw is None:
+        return None
+    truth = parse_truth(truth_raw, str(rec.path / "truth.json"))
+    tracks = read_tracks(Path(run_dir) / "tracks.jsonl")
+    cam = rec.meta.camera
+    return explain_late(truth, tracks, rec.frame_times, (cam.width, cam.height), rec.meta.mount)
 
 
 def _fmt(v: Any, spec: str = ".2f") -> str:
@@ -99,6 +116,11 @@ def main(args: argparse.Namespace) -> int:
               f"{_fmt(o['first_detection_frame'])}, delay {_fmt(o['detection_delay_frames'])} "
               f"frames{' (tracked before it was eligible)' if early else ''}, "
               f"tracked {_fmt(o['tracked_fraction'], '.0%')}, tracks {o['track_ids']}")
+    late = result.get("late_reasons")
+    if late is not None:
+        lo, hi = late["window_s"]
+        print(f"  object {result['colliding_object']}, {lo:g}-{hi:g} s before contact (a level 2 "
+              f"then is in time), {late['frames']} frames: {describe(late['counts'])}")
     for c in result["level1_courses"]:
         if c["object"] is None:
             course = "no mover with a known course then"

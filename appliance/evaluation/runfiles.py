@@ -32,6 +32,7 @@ class TrackRow:
     bbox: Box
     ttc_s: float | None
     distance_m: float | None
+    reason: str | None = None
 
 
 @dataclass(frozen=True)
@@ -141,7 +142,9 @@ def read_tracks(path: Path) -> list[TrackRow]:
             out.append(TrackRow(frame=frame, t=float(t), id=int(tr["id"]),  # type: ignore[arg-type]
                                 bbox=_box(tr["bbox"], where, "bbox"),
                                 ttc_s=_num(tr.get("ttc_s"), where, "ttc_s"),
-                                distance_m=_num(tr.get("distance_m"), where, "distance_m")))
+                                distance_m=_num(tr.get("distance_m"), where, "distance_m"),
+                                reason=tr["reason"] if isinstance(tr.get("reason"), str)
+                                else None))
     return out
 
 

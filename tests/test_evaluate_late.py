@@ -77,7 +77,7 @@ def test_reasons_are_classed_by_the_check_they_fail() -> None:
     assert kind("caution, track 3 warned") == "caution"
     assert kind("ttc 3.4 s above 3.1 s") == "ttc above threshold"
     assert kind("path misses corridor by 0.9 m, hidden") == "path misses corridor"
-    assert kind("path stays 14.0 m ahead in the corridor") == "path misses corridor"
+    assert kind("path stays 14.0 m ahead in the corridor") == "path stays ahead"
     assert kind("probability 0.42 below 0.50") == "probability"
     assert kind("box 0.12 m tall, below 0.30 m") == "box too low"
     assert kind("standing: not yet seen coming nearer") == "standing, not closing"

@@ -42,6 +42,7 @@ KINDS: tuple[tuple[str, str], ...] = (
     ("caution", "caution"),
     ("ttc above threshold", "ttc "),
     ("no time to collision", "no time to collision"),
+    ("path stays ahead", "path stays "),
     ("path misses corridor", "path "),
     ("probability", "probability "),
     ("box too low", "box "),

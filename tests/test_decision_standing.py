@@ -211,6 +211,28 @@ def test_a_wall_receding_from_the_kerb_across_the_path_is_the_roadside() -> None
     assert not joins_roadside(E, D, face[1], face[2], face[3], 16.0)
 
 
+def test_a_car_in_the_lane_whose_evidence_spreads_nearer_beside_it_is_no_roadside() -> None:
+    """A car stopped in the lane, its evidence peaking at 45 m in the corridor's middle cells;
+    in the corridor cell beside them it reaches half the threshold at 36 m (its own evidence,
+    nearer than the peak). Within the corridor that is the path, not the roadside; the same
+    beside the corridor is."""
+    D = 3.0 * 1.12 ** np.arange(28)
+    n = CELLS + 2 * SIDE_CELLS
+    E = np.full((len(D), n), -5.0)
+    k = int(np.argmin(np.abs(D - 45.0)))
+    mid = SIDE_CELLS + CELLS // 2
+    E[k, mid - 1:mid + 1] = 40.0                  # the car's face, two cells of the middle
+    E[k - 2, mid + 1] = 10.0                      # beside it in the corridor: nearer, half
+    face = nearest_face(E, D, 16.0)
+    assert face is not None and (face[2], face[3]) == (mid - 1, mid)
+    assert not joins_roadside(E, D, face[1], face[2], face[3], 16.0)
+    E[k, mid + 1:SIDE_CELLS + CELLS] = 40.0       # a face reaching the corridor's left edge
+    E[k - 2, SIDE_CELLS + CELLS] = 10.0           # and something nearer beside the corridor
+    face = nearest_face(E, D, 16.0)
+    assert face is not None and face[3] == SIDE_CELLS + CELLS - 1
+    assert joins_roadside(E, D, face[1], face[2], face[3], 16.0)
+
+
 def test_the_roadside_is_decided_by_the_majority_of_frames_and_then_kept(
         default_config: Config) -> None:
     """A face that joins the roadside in one early frame (its edge against the background)

@@ -96,7 +96,6 @@ LOW_TOP_M = 0.55           # m, the top of a low standing surface (a crate): its
 #                            see the road behind it, and are not asked
 MIN_POINTS = 20            # measured points a frame needs to say anything
 EDGE_MARGIN_PX = 6         # px, probes this close to the border are not measured
-GAP_CELLS = 1              # cells beside an obstacle searched for a roadside coming nearer
 BASELINE_S = 0.15          # s, the corridor's flow is measured over about this many seconds
 MOTIONS = 6                # frame motions kept: a baseline spans at most this + 1 frames
 HISTORY_S = 0.5            # s of driving (at the current speed) an obstacle's closing is fit over
@@ -607,16 +606,25 @@ def nearest_face(evidence: FloatArray, D: FloatArray, threshold: float
 def joins_roadside(evidence: FloatArray, D: FloatArray, depth: float, c0: int, c1: int,
                    threshold: float) -> bool:
     """Whether the face (cells ``c0..c1`` at ``depth`` m) continues a roadside that comes
-    nearer beside it: within ``GAP_CELLS`` of its edge, on either side, something stands a bin
-    or more nearer (evidence at least half ``threshold``). The parked cars and facades at the
-    outside of a bend stand across a path predicted straight on, as a wall receding from the
-    kerb; a car or a pedestrian in the lane has free road beside it."""
+    nearer beside it: on either side, from the cell next to its edge outward, something stands
+    a bin or more nearer than the face (evidence at least half ``threshold``), in each cell no
+    farther than in the one before, up to a cell beside the corridor. The parked cars and
+    facades at the outside of a bend stand across a path predicted straight on, as a wall
+    receding from the kerb: it enters the corridor from beside it, nearer the farther out. A
+    car or a pedestrian in the lane has free road beside it; a car's own evidence spreads into
+    the corridor cells beside its peak, nearer than the peak (the evidence peaks beyond a
+    face), but not on out of the corridor, nearer still."""
     n = evidence.shape[1]
-    for cells in (range(max(c0 - GAP_CELLS, 0), c0), range(c1 + 1, min(c1 + 1 + GAP_CELLS, n))):
-        for c in cells:
+    for step, start in ((-1, c0 - 1), (1, c1 + 1)):
+        limit, c = depth / RANGE_RATIO, start
+        while 0 <= c < n:
             strong = np.flatnonzero(evidence[:, c] >= 0.5 * threshold)
-            if len(strong) and D[strong].min() * RANGE_RATIO <= depth:
+            nearest = float(D[strong].min()) if len(strong) else math.inf
+            if nearest > limit:
+                break
+            if c < SIDE_CELLS or c >= SIDE_CELLS + CELLS:
                 return True
+            limit, c = nearest, c + step
     return False
 
 

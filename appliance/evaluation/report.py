@@ -17,24 +17,30 @@ import sys
 from pathlib import Path
 from typing import Any, TextIO
 
-from appliance.config import load_config
+from appliance.config import Config, load_config
 from appliance.errors import UsageError
 from appliance.evaluation.columns import COLUMNS
 from appliance.evaluation.late import describe, explain_late
 from appliance.evaluation.metrics import evaluate
 from appliance.evaluation.plot import plot_timeline
-from appliance.evaluation.runfiles import parse_truth, read_tracks, read_warnings
+from appliance.evaluation.runfiles import Truth, parse_truth, read_tracks, read_warnings
 from appliance.recording import Recording
+
+
+def _open(recording: str | Path) -> tuple[Config, Recording, Truth | None]:
+    """The configuration, the recording and its parsed truth (None: it has none)."""
+    cfg = load_config()
+    rec = Recording(recording, cfg)
+    truth_raw = rec.truth()
+    truth = None if truth_raw is None else parse_truth(truth_raw, str(rec.path / "truth.json"))
+    return cfg, rec, truth
 
 
 def evaluate_run(recording: str | Path, run_dir: str | Path, plot: bool = True) -> dict[str, Any]:
     """Score ``run_dir`` against ``recording``; writes evaluation.json (and timeline.png)."""
-    cfg = load_config()
-    rec = Recording(recording, cfg)
-    truth_raw = rec.truth()
-    if truth_raw is None:
+    cfg, rec, truth = _open(recording)
+    if truth is None:
         raise UsageError(f"{rec.path}: no truth.json; only simulated recordings can be evaluated")
-    truth = parse_truth(truth_raw, str(rec.path / "truth.json"))
     run = Path(run_dir)
     if not run.is_dir():
         raise UsageError(f"{run}: run directory not found")
@@ -64,12 +70,9 @@ def evaluate_run(recording: str | Path, run_dir: str | Path, plot: bool = True) 
 def late_of_run(recording: str | Path, run_dir: str | Path) -> dict[str, Any] | None:
     """What kept a level 2 from being in time in ``run_dir`` (``late.explain_late``), for a
     run scored elsewhere (another world's scorer); None without a collision or a truth."""
-    cfg = load_config()
-    rec = Recording(recording, cfg)
-    truth_raw = rec.truth()
-    if truth_raw is None:
+    _, rec, truth = _open(recording)
+    if truth is None:
         return None
-    truth = parse_truth(truth_raw, str(rec.path / "truth.json"))
     tracks = read_tracks(Path(run_dir) / "tracks.jsonl")
     cam = rec.meta.camera
     return explain_late(truth, tracks, rec.frame_times, (cam.width, cam.height), rec.meta.mount)

@@ -272,6 +272,52 @@ def test_the_roadside_is_decided_by_the_majority_of_frames_and_then_kept(
     assert all(ob.roadside and ob.at_roadside for ob in mostly[undecided:])
 
 
+def test_what_reaches_part_of_the_threshold_only_may_stand_until_it_reaches_it(
+        default_config: Config) -> None:
+    """A face whose evidence reaches ``SUSPECT_SHARE`` of the threshold, not the threshold, is
+    an obstacle not confirmed (a caution at most), confirmed in the frames its evidence reaches
+    the threshold, one obstacle throughout; below the share nothing stands. What it saw of
+    its closing, and of its motion, before its first confirmation is forgotten then."""
+    cfg = default_config
+    D = ranges(cfg.obstacle)
+    k = int(np.argmin(np.abs(D - 20.0)))
+    thr = cfg.obstacle.evidence_threshold
+
+    def step(state, peak: float, i: int, layer: int = 0):
+        layers = np.full((len(RATES) + 1, len(D), CELLS + 2 * SIDE_CELLS), -5.0)
+        layers[layer, k, SIDE_CELLS + 1:SIDE_CELLS + 5] = peak
+        state = dataclasses.replace(state, evidence=layers)
+        # at a standstill: the evidence is carried where it is, faded by the memory
+        state, _ = standing_step(state, None, None, np.zeros(0), i * DT, DT, 0.0, None, CAM,
+                                 cfg.mount, cfg.warning.corridor_margin_m, 1, cfg.obstacle)
+        return state
+
+    fade = math.exp(-DT / cfg.obstacle.memory_s)
+    share = standing.SUSPECT_SHARE
+    state = step(init_standing(cfg.obstacle), 0.95 * share * thr / fade, 0)
+    assert state.obstacle is None
+    suspect, reached = 0.5 * (1.0 + share) * thr / fade, 1.05 * thr / fade
+    seen = []
+    for i, peak in enumerate([suspect] * 3 + [reached] + [suspect] * 3):
+        state = step(state, peak, i + 1)
+        seen.append(state.obstacle)
+    assert all(ob is not None and ob.id == 1 for ob in seen)
+    assert [ob.confirmed for ob in seen] == [False] * 3 + [True] + [False] * 3
+    # its closing is fit anew from when it is first confirmed, and only then
+    assert [len(ob.history) for ob in seen] == [1, 2, 3, 1, 2, 3, 4]
+    assert [ob.confirmed_at for ob in seen] == [None] * 3 + [4 * DT] * 4
+    # nor is it taken to have closed slower than the ego once confirmed standing, for having
+    # looked so while it only may have stood
+    state = init_standing(cfg.obstacle)
+    for i in range(3):
+        state = step(state, suspect, i, layer=1)
+        assert state.obstacle is not None and state.obstacle.was_closing
+    state = step(state, reached, 3)
+    assert state.obstacle.confirmed and not state.obstacle.was_closing
+    assert obstacle_threat(seen[0], frame(cfg), cfg.warning, thr).suspected
+    assert not obstacle_threat(seen[3], frame(cfg), cfg.warning, thr).suspected
+
+
 def test_the_rotation_left_over_is_measured_across_the_static_direction() -> None:
     rng = np.random.default_rng(3)
     angle = rng.uniform(0.3, 2.8, 200)           # static directions below the epipole
@@ -535,8 +581,10 @@ def test_a_lead_car_braking_to_a_stop_stays_one_obstacle(default_config: Config,
     """As a lead car brakes, what it hypothesises comes nearer faster than at its closing
     speed of the moment; the evidence follows it, so from when it is first found, while it
     still drives, it is seen every frame, one obstacle through the layers to its stop and
-    after. Carried at the closing speed alone, it is found later and lost on the way."""
+    after. Carried at the closing speed alone, it is found later and lost on the way (both
+    at the full threshold: what only may stand is not asked here)."""
     cfg = default_config
+    monkeypatch.setattr(standing, "SUSPECT_SHARE", 1.0)
     seen = braking_lead(cfg)
     first = next(k for k, ob in enumerate(seen) if ob is not None)
     assert first < 0.7 * 2.1 * FPS                         # found while it still drives

@@ -245,6 +245,20 @@ def test_a_hidden_track_raises_at_most_hidden_max_level(default_config: Config) 
     assert run(cfg, [(hidden,)] * 10, hidden_max_level=0)[1] == []
 
 
+def test_what_only_may_stand_in_the_path_raises_a_caution(default_config: Config) -> None:
+    """An obstacle whose evidence is short of the threshold (``suspected``) cautions, however
+    near its contact; the same obstacle confirmed warns."""
+    from dataclasses import replace
+
+    cfg = default_config.warning
+    confirmed = replace(threat(1, 1.0), moving=False, standing=True, closing=1.0)
+    suspected = replace(confirmed, suspected=True)
+    levels, events = run(cfg, [(suspected,)] * 10)
+    assert [e.level for e in events] == [1] and levels[-1] == 1
+    levels, events = run(cfg, [(suspected,)] * 5 + [(confirmed,)] * 5)
+    assert [e.level for e in events] == [1, 2] and levels[-1] == 2
+
+
 def reasons(cfg: WarningConfig, frames: list[tuple[TrackThreat, ...]]) -> list[dict[int, str]]:
     state = WarningState()
     out = []

@@ -61,7 +61,9 @@ class TrackThreat:
     (``standing.py``), static by construction, its evidence its parallax; roadside: such an
     obstacle continues the roadside (the outside of a bend the path is predicted straight into);
     closing: how much nearer such an obstacle comes per metre driven (None: not yet known);
-    stopped: such an obstacle continues the track of a mover that came to a stop (handover.py)."""
+    stopped: such an obstacle continues the track of a mover that came to a stop (handover.py);
+    suspected: such an obstacle whose evidence has not yet reached the threshold (raises at
+    most a caution)."""
 
     report: TrackReport
     on_course: bool
@@ -78,6 +80,7 @@ class TrackThreat:
     roadside: bool = False
     closing: float | None = None
     stopped: bool = False
+    suspected: bool = False
 
     @property
     def ttc(self) -> float | None:

@@ -26,8 +26,9 @@ The evidence of a hypothesis is summed over frames, anchored to the road (a stan
 comes nearer by the distance driven), with a fading memory (``obstacle.memory_s``). Where a
 corridor cell's evidence reaches ``obstacle.evidence_threshold``, something stands there: the
 nearest such cell's peak along the path finds it, its extent the cells beside it that carry
-half of it (:func:`nearest_face`), and its depth is fit to the parallax of the points that peak
-tests (:func:`face_depth`: the peak lies beyond the face); the roadside test
+half of it (:func:`nearest_face`; from ``SUSPECT_SHARE`` of the threshold something only may
+stand there, which raises a caution at most), and its depth is fit to the parallax of the
+points that peak tests (:func:`face_depth`: the peak lies beyond the face); the roadside test
 (:func:`joins_roadside`) and its closing (``Obstacle.closing``) tell it from the outside of a
 bend. An obstacle is static: its
 time to collision and whether it is in the path come from ``threat.predict_path`` for an
@@ -113,6 +114,8 @@ BRAKING_STEPS = 5          # the closings between, tried for the evidence carrie
 CLOSING_WIDTH_M = 1.2      # m, what closes slower than the ego is a vehicle at least this wide
 FIT_RATIO = 1.01           # ratio of successive depths a face's depth is fit over
 MIN_FACE_POINTS = 5        # points standing up in a face that measure its depth
+SUSPECT_SHARE = 0.5        # share of ``obstacle.evidence_threshold`` from which something may
+                           #   stand in the path: a caution, until it reaches the threshold
 
 
 def compose(motions: tuple[Motion | None, ...], now: Motion, frames: int) -> tuple[Motion, int]:
@@ -174,7 +177,14 @@ class Obstacle:
     ``rate``: the share of the ego speed it closes at, as the evidence layer it was found in
     says (1: it stands); ``layer_since_m``: the distance driven when it was first found in
     that layer; ``was_closing``: it was found closing slower than the ego drives, i.e. moving
-    along the path, in a frame (what was seen to move may brake; what stands does not)."""
+    along the path, in a frame (what was seen to move may brake; what stands does not);
+    ``confirmed``: its evidence reaches ``obstacle.evidence_threshold`` this frame; short of
+    it, from ``SUSPECT_SHARE`` of it, something only may stand there: one obstacle all the
+    same, which raises at most a caution while it is not confirmed, and whose face is tested
+    against the roadside at that share too; ``confirmed_at``: when it was first confirmed (s;
+    None: not yet). Its ``history``, ``roadside`` and ``was_closing`` start anew then: while
+    its evidence built up, the peak lagged behind it, and the weak evidence decides nothing
+    the confirmed obstacle keeps."""
 
     id: int
     depth_m: float
@@ -189,6 +199,8 @@ class Obstacle:
     rate: float = 1.0
     layer_since_m: float = 0.0
     was_closing: bool = False
+    confirmed: bool = True
+    confirmed_at: float | None = 0.0
 
     @property
     def apparent_m(self) -> float:
@@ -628,6 +640,24 @@ def joins_roadside(evidence: FloatArray, D: FloatArray, depth: float, c0: int, c
     return False
 
 
+def found(evidence: FloatArray, standing: FloatArray, D: FloatArray, threshold: float,
+          cell: float) -> tuple[tuple[int, float, int, int] | None, int]:
+    """The face of what stands in the path at ``threshold`` (:func:`nearest_face`) and its
+    layer: in the standing layer (``standing``, the better of the surface and the low one),
+    or, where nothing stands, the strongest face of something closing slower, at least
+    ``CLOSING_WIDTH_M`` wide (``cell``: a cell's width, m); (None, 0) where neither is."""
+    face = nearest_face(standing, D, threshold)
+    if face is not None:
+        return face, 0
+    faces = [(f, j) for j in range(1, len(RATES))
+             if (f := nearest_face(evidence[j], D, threshold)) is not None
+             and (f[3] - f[2] + 1) * cell >= CLOSING_WIDTH_M - 1e-9]
+    if not faces:
+        return None, 0
+    return max(faces, key=lambda fj: float(
+        evidence[fj[1], fj[0][0], fj[0][2]:fj[0][3] + 1].max()))
+
+
 def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow | None,
                   mover_p: FloatArray, t: float, dt: float, speed: float, motion: Motion | None,
                   camera: PinholeCamera, mount: MountConfig, margin: float, next_id: int,
@@ -653,15 +683,13 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
     cell = width / CELLS
     # what stands: the better of a surface up to SURFACE_M[1] and a low one, per hypothesis
     standing = np.maximum(evidence[0], evidence[-1])
-    face, layer = nearest_face(standing, D, cfg.evidence_threshold), 0
-    if face is None:
-        # nothing stands: the strongest face of something closing slower
-        faces = [(f, j) for j in range(1, len(RATES))
-                 if (f := nearest_face(evidence[j], D, cfg.evidence_threshold)) is not None
-                 and (f[3] - f[2] + 1) * cell >= CLOSING_WIDTH_M - 1e-9]
-        if faces:
-            face, layer = max(faces, key=lambda fj: float(
-                evidence[fj[1], fj[0][0], fj[0][2]:fj[0][3] + 1].max()))
+    face, layer, confirmed = None, 0, True
+    for threshold in (cfg.evidence_threshold, SUSPECT_SHARE * cfg.evidence_threshold):
+        face, layer = found(evidence, standing, D, threshold, cell)
+        if face is not None:
+            break
+        # short of the threshold: something only may stand there (a caution)
+        confirmed = False
     if face is not None:
         k, depth, c0, c1 = face
         # where it stands: its points' own parallax (the evidence peaks beyond the face); where
@@ -675,26 +703,36 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
         offsets = cell_offsets(width)
         half = 0.5 * cell
         lateral = (float(offsets[c0] - half), float(offsets[c1] + half))
-        side = joins_roadside(layered, D, depth, c0, c1, cfg.evidence_threshold)
         ident, since = (next_id, t) if obstacle is None else (obstacle.id, obstacle.since)
-        stopped = obstacle is not None and obstacle.stopped
-        top = obstacle.top_m if obstacle is not None else TOP_M
-        history = () if obstacle is None else obstacle.history
         if obstacle is None:
             next_id += 1
+        # once confirmed, what it was taken for while it only may have stood is judged anew:
+        # its closing (while its evidence built up, its peak lagged behind it), the roadside
+        # and whether it closed slower than the ego (weak evidence, at a bar of its own)
+        fresh = obstacle is None or (confirmed and obstacle.confirmed_at is None)
+        confirmed_at = obstacle.confirmed_at if obstacle is not None and not fresh \
+            else t if confirmed else None
+        side = joins_roadside(layered, D, depth, c0, c1,
+                              threshold if confirmed_at is None else cfg.evidence_threshold)
+        stopped = obstacle is not None and obstacle.stopped
+        top = obstacle.top_m if obstacle is not None else TOP_M
+        history = () if fresh or obstacle is None else obstacle.history
         history = tuple(h for h in (*history, (driven, depth / RATES[layer], side))
                         if h[0] >= driven - HISTORY_S * max(speed, 0.1))
-        roadside = obstacle is not None and obstacle.roadside
-        if t - since >= HISTORY_S and history[-1][0] - history[0][0] >= MIN_HISTORY_M:
+        roadside = not fresh and obstacle is not None and obstacle.roadside
+        judged = since if confirmed_at is None else confirmed_at
+        if t - judged >= HISTORY_S and history[-1][0] - history[0][0] >= MIN_HISTORY_M:
             roadside = roadside or 2 * sum(h[2] for h in history) > len(history)
+        kept = None if fresh else obstacle
         obstacle = Obstacle(id=ident, depth_m=face_m, lateral_m=lateral,
                             evidence=float(layered[k, c0:c1 + 1].max()), since=since, seen=t,
                             roadside=roadside, history=history, stopped=stopped,
                             top_m=top, rate=RATES[layer],
-                            layer_since_m=driven if obstacle is None
-                            or obstacle.rate != RATES[layer] else obstacle.layer_since_m,
+                            layer_since_m=driven if kept is None
+                            or kept.rate != RATES[layer] else kept.layer_since_m,
                             was_closing=RATES[layer] < 1.0
-                            or (obstacle is not None and obstacle.was_closing))
+                            or (kept is not None and kept.was_closing),
+                            confirmed=confirmed, confirmed_at=confirmed_at)
     motions = (*state.motions, motion)[-MOTIONS:]
     return StandingState(evidence=evidence, obstacle=obstacle, motions=motions,
                          driven_m=driven), next_id
@@ -773,4 +811,5 @@ def obstacle_threat(ob: Obstacle, f: FrameContext, cfg: WarningConfig,
                        miss_m=None if base.ttc is not None else base.closest,
                        miss_ahead=base.ttc is None and base.ahead, moving=False,
                        speed_m_s=0.0, standing=True, roadside=ob.at_roadside, closing=ob.closing,
-                       stopped=ob.stopped, ego_known=f.ego_known)
+                       stopped=ob.stopped, suspected=not ob.confirmed,
+                       ego_known=f.ego_known)

@@ -17,7 +17,9 @@ predicted path meets the ego corridor and with what TTC. From that:
   the speed it moves at least, 2 std below its estimate) needs no ``min_probability``: a
   lead car at the epipole shows little independent flow.
   A hidden track, assessed from its coasted 3-D state, needs ``HIDDEN_MIN_PROBABILITY``
-  (its highest while seen) and raises at most ``hidden.max_level``.
+  (its highest while seen) and raises at most ``hidden.max_level``. An obstacle that only
+  may stand in the path (its evidence short of ``obstacle.evidence_threshold``, standing.py)
+  raises at most a caution.
 * **Without the ego motion** (vehicle CAN stale or absent, PTU lost) the 3-D states' velocities
   over ground mean nothing: a track is judged from its image's growth and its bearing alone
   (``assess``), needs its probability whatever its speed, and raises at most a caution; a
@@ -156,8 +158,8 @@ def warning_step(state: WarningState, threats: tuple[TrackThreat, ...], t: float
         why1 = indication(th, thresholds[1] + lookahead, cfg)
         s1 = old[0] + 1 if why1 is None else 0
         s2 = old[1] + 1 if indication(th, thresholds[2] + lookahead, cfg) is None else 0
-        if not th.ego_known:   # no level 2 from an ego motion it does not know
-            s2 = 0
+        if not th.ego_known or th.suspected:   # no level 2 from an ego motion it does not
+            s2 = 0                              # know, nor from what only may stand
         if th.coasted and hidden_max_level < 2:   # an issued level is held
             s2 = 0
             if hidden_max_level < 1:

@@ -10,6 +10,7 @@ from appliance.decision.assess import TrackThreat
 from appliance.decision.warnings import (
     FAST_MOVER_M_S,
     HIDDEN_MIN_PROBABILITY,
+    ONLY_MAY_STAND,
     WarningState,
     pool_covered,
     warning_step,
@@ -255,6 +256,10 @@ def test_what_only_may_stand_in_the_path_raises_a_caution(default_config: Config
     suspected = replace(confirmed, suspected=True)
     levels, events = run(cfg, [(suspected,)] * 10)
     assert [e.level for e in events] == [1] and levels[-1] == 1
+    # and says why it is no warning, only where its time would warn
+    assert reasons(cfg, [(suspected,)] * 10)[-1][1] == f"caution: {ONLY_MAY_STAND}"
+    far = replace(suspected, report=replace(suspected.report, ttc_s=2.8))
+    assert reasons(cfg, [(far,)] * 10)[-1][1] == "caution"
     levels, events = run(cfg, [(suspected,)] * 5 + [(confirmed,)] * 5)
     assert [e.level for e in events] == [1, 2] and levels[-1] == 2
 

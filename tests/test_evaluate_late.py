@@ -10,6 +10,7 @@ import pytest
 
 from appliance.cli import main as cli_main
 from appliance.config import Config
+from appliance.decision.warnings import ONLY_MAY_STAND
 from appliance.evaluation import pooled
 from appliance.evaluation.late import describe, kind, late_reasons
 from appliance.evaluation.report import evaluate_run, late_of_run
@@ -75,6 +76,7 @@ def test_reasons_are_classed_by_the_check_they_fail() -> None:
     assert kind("warning, held: ttc 5.0 s above 2.1 s") == "warning"
     assert kind("caution indicated 2 of 3 frames") == "caution"
     assert kind("caution, track 3 warned") == "caution"
+    assert kind(f"caution: {ONLY_MAY_STAND}") == "caution, only may stand"
     assert kind("ttc 3.4 s above 3.1 s") == "ttc above threshold"
     assert kind("path misses corridor by 0.9 m, hidden") == "path misses corridor"
     assert kind("path stays 14.0 m ahead in the corridor") == "path stays ahead"

@@ -42,7 +42,8 @@ predicted path meets the ego corridor and with what TTC. From that:
 The issued level is the highest over all tracks (ties: the track already
 warned about, then the smallest TTC). A state change -- level or warned track --
 produces one :class:`WarningEvent`. Every track's reason (``tracks.jsonl``) says where it
-stands: "warning" / "caution" for the warned track, else what keeps it from a level.
+stands: "warning" / "caution" for the warned track (a caution on something that only may
+stand, within the warning's TTC, says so), else what keeps it from a level.
 """
 
 from __future__ import annotations
@@ -57,6 +58,8 @@ MIN_CLOSING = 0.5             # a standing obstacle comes nearer by at least thi
 FAST_MOVER_M_S = 5.0          # m/s over ground: a car or cyclist needs no min_probability
 HIDDEN_MIN_PROBABILITY = 0.55  # min_probability of a hidden track (its highest while seen)
 LEVEL_NAMES = {1: "caution", 2: "warning"}
+ONLY_MAY_STAND = "only may stand, its evidence short of the threshold"   # why a caution
+#                  within the warning's TTC is no warning (standing.SUSPECT_SHARE)
 
 
 @dataclass(frozen=True)
@@ -243,6 +246,9 @@ def warning_step(state: WarningState, threats: tuple[TrackThreat, ...], t: float
             if levels[tid] < level:   # held: and what it no longer meets
                 lapsed = indication(th, thresholds[level] + lookahead, cfg)
                 why += ", held" + (f": {lapsed}" if lapsed else "")
+            elif level == 1 and th.suspected and th.ego_known \
+                    and indication(th, thresholds[2] + lookahead, cfg) is None:
+                why += f": {ONLY_MAY_STAND}"
         elif levels[tid] > 0:
             why = f"{LEVEL_NAMES[levels[tid]]}, track {new_track} warned"
         else:

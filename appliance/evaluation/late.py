@@ -39,6 +39,7 @@ HIDDEN = "hidden"
 # a track that fails a later check came further than one failing an earlier one
 KINDS: tuple[tuple[str, str], ...] = (
     ("warning", "warning"),
+    ("caution, only may stand", "caution: only may stand"),
     ("caution", "caution"),
     ("ttc above threshold", "ttc "),
     ("no time to collision", "no time to collision"),

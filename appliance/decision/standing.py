@@ -683,13 +683,13 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
     cell = width / CELLS
     # what stands: the better of a surface up to SURFACE_M[1] and a low one, per hypothesis
     standing = np.maximum(evidence[0], evidence[-1])
-    face, layer, confirmed = None, 0, True
-    for threshold in (cfg.evidence_threshold, SUSPECT_SHARE * cfg.evidence_threshold):
-        face, layer = found(evidence, standing, D, threshold, cell)
-        if face is not None:
-            break
+    threshold = cfg.evidence_threshold
+    face, layer = found(evidence, standing, D, threshold, cell)
+    confirmed = face is not None
+    if not confirmed:
         # short of the threshold: something only may stand there (a caution)
-        confirmed = False
+        threshold = SUSPECT_SHARE * cfg.evidence_threshold
+        face, layer = found(evidence, standing, D, threshold, cell)
     if face is not None:
         k, depth, c0, c1 = face
         # where it stands: its points' own parallax (the evidence peaks beyond the face); where
@@ -710,20 +710,19 @@ def standing_step(state: StandingState, p: CorridorProbe | None, flow: PointFlow
         # its closing (while its evidence built up, its peak lagged behind it), the roadside
         # and whether it closed slower than the ego (weak evidence, at a bar of its own)
         fresh = obstacle is None or (confirmed and obstacle.confirmed_at is None)
-        confirmed_at = obstacle.confirmed_at if obstacle is not None and not fresh \
-            else t if confirmed else None
+        kept = None if fresh else obstacle
+        confirmed_at = kept.confirmed_at if kept is not None else t if confirmed else None
         side = joins_roadside(layered, D, depth, c0, c1,
                               threshold if confirmed_at is None else cfg.evidence_threshold)
         stopped = obstacle is not None and obstacle.stopped
         top = obstacle.top_m if obstacle is not None else TOP_M
-        history = () if fresh or obstacle is None else obstacle.history
+        history = () if kept is None else kept.history
         history = tuple(h for h in (*history, (driven, depth / RATES[layer], side))
                         if h[0] >= driven - HISTORY_S * max(speed, 0.1))
-        roadside = not fresh and obstacle is not None and obstacle.roadside
+        roadside = kept is not None and kept.roadside
         judged = since if confirmed_at is None else confirmed_at
         if t - judged >= HISTORY_S and history[-1][0] - history[0][0] >= MIN_HISTORY_M:
             roadside = roadside or 2 * sum(h[2] for h in history) > len(history)
-        kept = None if fresh else obstacle
         obstacle = Obstacle(id=ident, depth_m=face_m, lateral_m=lateral,
                             evidence=float(layered[k, c0:c1 + 1].max()), since=since, seen=t,
                             roadside=roadside, history=history, stopped=stopped,

@@ -500,6 +500,35 @@ def test_insignificant_velocity_components_are_predicted_as_zero(default_config:
     np.testing.assert_allclose(significant_velocity(vel, P, 0.0), vel)
 
 
+def test_a_far_pedestrian_walking_into_the_path_keeps_its_velocity_across_the_line_of_sight(
+        default_config: Config) -> None:
+    """A pedestrian 38 m ahead, 5 m to the right, walking 1.4 m/s into the path of a car at
+    35 km/h (constant bearing: it meets the car). Its range rate is a noise value (std 5 m/s
+    along the line of sight), the velocity across the line of sight is known (std 0.1 m/s).
+    The uncertain range rate spreads into the lateral velocity's std (0.65 m/s, more than
+    half its 1.2 m/s); the longitudinal velocity is a noise value and predicted as 0, and
+    given that, the lateral one is known to 0.1 m/s and kept: the pedestrian still walks
+    into the path."""
+    mount = default_config.mount
+    pos = np.array([mount.x_m + 38.0, -5.0])
+    theta = math.atan2(pos[1] - mount.y_m, pos[0] - mount.x_m)
+    along = np.array([math.cos(theta), math.sin(theta)])
+    across = np.array([-math.sin(theta), math.cos(theta)])
+    P = np.zeros((4, 4))
+    P[:2, :2] = np.diag([4.0, 0.1])
+    P[2:, 2:] = 25.0 * np.outer(along, along) + 0.01 * np.outer(across, across)
+    vel = np.array([0.0, 1.4]) + 1.5 * along            # the range rate off by 1.5 m/s
+    assert math.sqrt(P[3, 3]) > 0.5 * vel[1]             # per vehicle axis: "insignificant"
+    v = significant_velocity(vel, P, 2.0)
+    assert v[0] == 0.0
+    assert v[1] == vel[1]
+    assert predict_path(pos, v, 9.72, 0.0, mount, 0.3, 0.25, 6.0).ttc is not None
+    # the same walker standing still (nothing significant): it stays beside the path
+    still = significant_velocity(1.5 * along, P, 2.0)
+    np.testing.assert_allclose(still, [0.0, 0.0], atol=1e-9)
+    assert predict_path(pos, still, 9.72, 0.0, mount, 0.3, 0.25, 6.0).ttc is None
+
+
 def test_bearing_rate_update_corrects_the_velocity_across_the_line_of_sight(
         default_config: Config) -> None:
     """A pedestrian on a constant bearing (collision course) whose state says standing still:

@@ -830,3 +830,51 @@ def test_contacts_of_an_object_reaching_below_its_cluster_are_taken_as_one_sided
     assert max(abs(_range_error(c, above=True)) for c in lost_legs) < 0.015
     honest = [_crossing_contacts(0.0, seed) for seed in range(3)]
     assert max(abs(_range_error(c, above=True)) for c in honest) < 0.025
+
+
+def _walker_contacts(seed: int) -> list[tuple[float, GroundContact, float]]:
+    """The pedestrian of :func:`_crossing_contacts` walking at 2 steps/s: its feet are found
+    while a foot swings (a quarter of each step) and 8-16 px too high between (the planted foot
+    flows like the road, the legs are narrower than the flow's window)."""
+    pose = CameraPose((1.9, 0.0, 1.3), 0.0, 0.0, 0.0)
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(45):
+        t = k / 25.0
+        obj = np.array([30.0 - 10.0 * t, -1.4 * (1.8 - t), 0.0])
+        uv = project(CAM, pose, obj)[0] + np.array([0.0, rng.normal(0.0, 1.0)])
+        if k % 12 >= 3:
+            uv[1] -= rng.uniform(8.0, 16.0)
+        contact = ground_contact(CAM, (float(uv[0]), float(uv[1])), pose, GroundModel())
+        assert contact is not None
+        out.append((t, contact, float(obj[0])))
+    return out
+
+
+def test_far_walkers_contacts_between_steps_are_all_but_ignored() -> None:
+    """A walker's feet show only while a foot swings. Where its legs are thinner than the flow's
+    window, a contact reading farther than predicted counts 10 times less, and the range keeps
+    to the steps' readings; with the 3 times of the near regime it reads 2-4 % too far."""
+    from appliance.decision.cues.ground import THIN_FAR_FACTOR, far_factor
+    from appliance.decision.ground_state import ground_absorb
+
+    # a leg 0.15 m wide is 9 px at 11.7 m with fx 700: farther, it is thinner than the window
+    assert far_factor(20.0, 700.0, 9, 3.0) == THIN_FAR_FACTOR
+    assert far_factor(11.0, 700.0, 9, 3.0) == 3.0
+    assert far_factor(20.0, 1400.0, 9, 3.0) == 3.0
+
+    def range_error(contacts: list[tuple[float, GroundContact, float]], factor: float) -> float:
+        cfg = GroundModel()
+        sensors = SensorSample(0.0, 10.0, 0.0)
+        g = None
+        errors = []
+        for t, contact, truth in contacts:
+            if g is not None:
+                g = ground_predict(g, 1.0 / 25.0, sensors, cfg)
+            g = ground_absorb(g, contact, t, cfg, above_feet=True, far_factor=factor)
+            errors.append((float(g.position[0]) - truth) / truth)
+        return float(np.median(errors[-20:]))
+
+    walkers = [_walker_contacts(seed) for seed in range(3)]
+    assert min(range_error(c, 3.0) for c in walkers) > 0.02
+    assert max(abs(range_error(c, THIN_FAR_FACTOR)) for c in walkers) < 0.016

@@ -488,14 +488,16 @@ def innovation_sigmas(g: GroundTrack, contact: GroundContact) -> float:
 
 def ground_absorb(g: GroundTrack | None, contact: GroundContact, t: float, cfg: GroundModel,
                   prior: tuple[FloatArray, FloatArray] | None = None,
-                  above_feet: bool = False) -> GroundTrack:
+                  above_feet: bool = False, far_factor: float | None = None) -> GroundTrack:
     """Start, update or (outlier) skip: a contact further than ``gate_sigmas`` from the
     prediction is skipped once the state has 3 contacts; 5 outliers in a row restart it
-    (the object was lost and found elsewhere, or the state went wrong)."""
+    (the object was lost and found elsewhere, or the state went wrong). ``above_feet``: the
+    object is known to reach below its cluster, a contact reading farther than predicted
+    counts ``far_factor`` (None: the model's) times its range std (:func:`one_sided`)."""
     if g is None:
         return ground_init(contact, t, cfg, prior)
     if above_feet:
-        contact = one_sided(g, contact, cfg.far_factor)
+        contact = one_sided(g, contact, cfg.far_factor if far_factor is None else far_factor)
     if g.updates >= 3 and innovation_sigmas(g, contact) > cfg.gate_sigmas:
         if g.rejected + 1 >= 5:
             return ground_init(contact, t, cfg, prior)

@@ -7,11 +7,13 @@ starts it, with its velocity across the line of sight from the bearing rate
 one (``x.found``) takes that one's coasted state. Without a contact for ``coast_s`` the
 state is dropped. For ``LOWERED_MEMORY_S`` after the foot cue last found the object reaching
 below its cluster, a contact reading farther than predicted counts less
-(:func:`ground_state.one_sided`): its cluster is known to stop above its feet.
+(:func:`ground_state.one_sided`): its cluster is known to stop above its feet; far away,
+where its legs are thinner than the flow's window, much less (:func:`far_factor`).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -30,6 +32,22 @@ from appliance.decision.ground_state import (
 
 LOWERED_MEMORY_S = 1.0   # s, after the foot cue last lowered a contact: its contacts one-sided
 RATE_STD_FLOOR = 0.01    # rad/s, the bearing rate is known to this at best (velocity_prior)
+LEG_WIDTH_M = 0.15       # m, a leg's width: narrower in the image than the flow's window, its
+                         #   flow is the road's behind it
+THIN_FAR_FACTOR = 10.0   # a contact reading farther than predicted, where legs are that thin
+
+
+def far_factor(range_m: float, fx: float, window_px: float, near: float) -> float:
+    """How much less a contact reading farther than predicted counts on an object known to
+    reach below its cluster (:func:`ground_state.one_sided`), at ``range_m`` for a camera of
+    focal length ``fx`` px and a flow window of ``window_px``. Where a leg (``LEG_WIDTH_M``)
+    is narrower than the window, its flow is the road's behind it, and a walker's planted foot
+    moves like the road anyway: only a swinging foot shows where the object ends, one step in
+    two, and the contacts between steps sit on the knees; they are all but ignored
+    (``THIN_FAR_FACTOR``). Nearer, the legs fill the window and the feet are seen every frame:
+    ``near``."""
+    leg_px = LEG_WIDTH_M * fx / max(range_m, 1e-3)
+    return THIN_FAR_FACTOR if leg_px < window_px else near
 
 
 @dataclass(frozen=True)
@@ -77,7 +95,12 @@ class GroundContact:
                     contact.z, fit[0], f.speed, f.yaw_rate, (f.mount.x_m, f.mount.y_m), model,
                     max(fit[1], RATE_STD_FLOOR))
                 above = lowered_t is not None and f.t - lowered_t <= LOWERED_MEMORY_S
-                g = ground_absorb(g, contact, f.t, model, prior, above_feet=above)
+                pose = f.pose
+                range_m = math.hypot(contact.z[0] - pose.position[0],
+                                     contact.z[1] - pose.position[1])
+                factor = far_factor(range_m, f.camera.fx, f.window_px, model.far_factor)
+                g = ground_absorb(g, contact, f.t, model, prior, above_feet=above,
+                                  far_factor=factor)
         fresh = g is not None and g.t_update == f.t
         if g is not None and not fresh and f.t - g.t_update > cfg.coast_s:
             g = None

@@ -152,20 +152,21 @@ def test_between_the_legs_the_road_does_not_end_the_object(default_config: Confi
     assert abs(out.bottom - truth) <= 0.1 * (truth - CAM.cy) + 1.0, (out, truth)
 
 
-def test_a_swinging_leg_reaches_down_to_the_feet(default_config: Config) -> None:
-    """18 m ahead the body's own flow at its feet lies within two flow std of the road's, so the
-    body says nothing there; the leg that swings ahead of it (0.06 m per frame: walking at
-    1.4 m/s, 25 frames/s) flows far from the road's, and the object reaches down near the feet.
-    The contact read from the cluster's own bottom is 86 % too far; from the foot, less than
-    25 % (the last row is placed half a window above the leg's end, as for every object)."""
-    depth_m = 18.0
+@pytest.mark.parametrize("depth_m", [18.0, 22.0])
+def test_a_swinging_leg_reaches_down_to_the_feet(default_config: Config, depth_m: float) -> None:
+    """18-22 m ahead the body's own flow at its feet lies within two flow std of the road's, so
+    the body says nothing there; the leg that swings ahead of it (0.06 m per frame: walking at
+    1.4 m/s, 25 frames/s) flows far from both the road's and the body's, and the object reaches
+    down near the feet. The contact read from the cluster's own bottom is 86 % too far; from the
+    foot, less than 15 %: a limb swinging says the object's lowest part on the road stands
+    still and flows like it, so the last row is not moved half a window up (it was: 23 %)."""
     prev, cur = pedestrian(depth_m, legs=True, swing_m=0.06)
     box = hips_box(depth_m, 1.2)
     at = np.array([0.5 * (box[0] + box[2]), 0.5 * (box[1] + box[3])])
     out = found(prev, cur, box, expansion_flow(at, depth_m), default_config)
     assert out.rows > 0
     assert out.bottom <= feet_row(depth_m) + 1.0
-    assert CAM.fy * HEIGHT_M / (out.bottom - CAM.cy) <= 1.25 * depth_m, (out, feet_row(depth_m))
+    assert CAM.fy * HEIGHT_M / (out.bottom - CAM.cy) <= 1.15 * depth_m, (out, feet_row(depth_m))
 
 
 def test_a_cluster_at_the_feet_stays_where_it_is(default_config: Config) -> None:

@@ -21,6 +21,11 @@ road's; the object ends after ``max_gap`` rows in a row that do not. Rows where
 the two predictions lie too close to tell apart (far away, or an object moving like the road),
 where nothing was measured, or with a single flow apart from the road's, neither extend nor
 stop it, up to ``MAX_BLIND`` of them in a row.
+The object's bottom is put half a window above its last row (a window centred below an
+object still holds some of it), unless at least ``MIN_OBJECT`` of its flows lie ``APART``
+from both the road's and the body's: a limb swinging (a walker) or a wheel turning. Then its
+lowest part on the road, a planted foot or a tyre's tread, stands still and flows like the
+road, and the last row following the object is above it already.
 Pure: decision never sees the images.
 """
 
@@ -220,12 +225,16 @@ def foot(p: FootProbe | None, flow_px: FloatArray | None, valid_px: NDArray[np.b
     apart = valid & (off_road >= APART)
     follows_object = (telling | apart) & ~follows_road & ~static_nearer
     strong = follows_object & apart
+    # apart from the body's flow too: a limb swinging (a walker), or a wheel turning
+    swinging = strong & (mahalanobis(flow - expected, precision) >= APART)
     bottom, found, gap, blind, ended = p.v1, 0, 0, 0, False
+    swings = 0
     for r in range(n_rows):
         n_obj, n_road = int(follows_object[r].sum()), int(follows_road[r].sum())
         n_strong = int(strong[r].sum())
         if n_obj >= MIN_OBJECT and (2 * n_obj >= n_road or n_strong >= MIN_OBJECT):
             bottom, found, gap, blind = float(p.rows[r] + 0.5 * p.step - p.halo), r + 1, 0, 0
+            swings += int(swinging[r].sum())
         elif (n_road == 0 and n_obj < MIN_OBJECT) or n_strong > 0:
             blind += 1
             if blind > MAX_BLIND:    # the road not seen: where the object ends is not known
@@ -236,6 +245,10 @@ def foot(p: FootProbe | None, flow_px: FloatArray | None, valid_px: NDArray[np.b
             if gap >= max_gap:
                 ended = True
                 break
+    if swings >= MIN_OBJECT:
+        # the part on the road (a planted foot, a wheel's tread) is still: it flows like the
+        # road, so the last row following the object is above it, not a halo below it
+        bottom += p.halo
     return Foot(bottom=bottom, rows=found, at_edge=p.cut and found > 0 and not ended)
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -790,6 +791,13 @@ def _crossing_contacts(high_share: float, seed: int) -> list[tuple[float, Ground
     """A pedestrian crossing 1.4 m/s into the path of a car at 10 m/s, from 30 m to 12 m ahead,
     its contact row 1 px noisy; on ``high_share`` of the frames the feet are found 8-16 px
     too high (the legs lost). (t, contact, true range ahead of the vehicle origin)."""
+    return _contacts(seed, lambda k, rng: bool(rng.random() < high_share))
+
+
+def _contacts(seed: int, high: Callable[[int, np.random.Generator], bool]
+              ) -> list[tuple[float, GroundContact, float]]:
+    """The crossing pedestrian of :func:`_crossing_contacts`, its feet found 8-16 px too high
+    in frame k where ``high(k, rng)``."""
     pose = CameraPose((1.9, 0.0, 1.3), 0.0, 0.0, 0.0)
     rng = np.random.default_rng(seed)
     out = []
@@ -797,7 +805,7 @@ def _crossing_contacts(high_share: float, seed: int) -> list[tuple[float, Ground
         t = k / 25.0
         obj = np.array([30.0 - 10.0 * t, -1.4 * (1.8 - t), 0.0])
         uv = project(CAM, pose, obj)[0] + np.array([0.0, rng.normal(0.0, 1.0)])
-        if rng.random() < high_share:
+        if high(k, rng):
             uv[1] -= rng.uniform(8.0, 16.0)
         contact = ground_contact(CAM, (float(uv[0]), float(uv[1])), pose, GroundModel())
         assert contact is not None
@@ -805,7 +813,8 @@ def _crossing_contacts(high_share: float, seed: int) -> list[tuple[float, Ground
     return out
 
 
-def _range_error(contacts: list[tuple[float, GroundContact, float]], above: bool) -> float:
+def _range_error(contacts: list[tuple[float, GroundContact, float]], above: bool,
+                 far_factor: float | None = None) -> float:
     """Median relative range error of the 3-D state over the last 20 contacts."""
     from appliance.decision.ground_state import ground_absorb
 
@@ -816,7 +825,7 @@ def _range_error(contacts: list[tuple[float, GroundContact, float]], above: bool
     for t, contact, truth in contacts:
         if g is not None:
             g = ground_predict(g, 1.0 / 25.0, sensors, cfg)
-        g = ground_absorb(g, contact, t, cfg, above_feet=above)
+        g = ground_absorb(g, contact, t, cfg, above_feet=above, far_factor=far_factor)
         errors.append((float(g.position[0]) - truth) / truth)
     return float(np.median(errors[-20:]))
 
@@ -836,19 +845,7 @@ def _walker_contacts(seed: int) -> list[tuple[float, GroundContact, float]]:
     """The pedestrian of :func:`_crossing_contacts` walking at 2 steps/s: its feet are found
     while a foot swings (a quarter of each step) and 8-16 px too high between (the planted foot
     flows like the road, the legs are narrower than the flow's window)."""
-    pose = CameraPose((1.9, 0.0, 1.3), 0.0, 0.0, 0.0)
-    rng = np.random.default_rng(seed)
-    out = []
-    for k in range(45):
-        t = k / 25.0
-        obj = np.array([30.0 - 10.0 * t, -1.4 * (1.8 - t), 0.0])
-        uv = project(CAM, pose, obj)[0] + np.array([0.0, rng.normal(0.0, 1.0)])
-        if k % 12 >= 3:
-            uv[1] -= rng.uniform(8.0, 16.0)
-        contact = ground_contact(CAM, (float(uv[0]), float(uv[1])), pose, GroundModel())
-        assert contact is not None
-        out.append((t, contact, float(obj[0])))
-    return out
+    return _contacts(seed, lambda k, rng: k % 12 >= 3)
 
 
 def test_far_walkers_contacts_between_steps_are_all_but_ignored() -> None:
@@ -856,25 +853,12 @@ def test_far_walkers_contacts_between_steps_are_all_but_ignored() -> None:
     window, a contact reading farther than predicted counts 10 times less, and the range keeps
     to the steps' readings; with the 3 times of the near regime it reads 2-4 % too far."""
     from appliance.decision.cues.ground import THIN_FAR_FACTOR, far_factor
-    from appliance.decision.ground_state import ground_absorb
 
     # a leg 0.15 m wide is 9 px at 11.7 m with fx 700: farther, it is thinner than the window
     assert far_factor(20.0, 700.0, 9, 3.0) == THIN_FAR_FACTOR
     assert far_factor(11.0, 700.0, 9, 3.0) == 3.0
     assert far_factor(20.0, 1400.0, 9, 3.0) == 3.0
 
-    def range_error(contacts: list[tuple[float, GroundContact, float]], factor: float) -> float:
-        cfg = GroundModel()
-        sensors = SensorSample(0.0, 10.0, 0.0)
-        g = None
-        errors = []
-        for t, contact, truth in contacts:
-            if g is not None:
-                g = ground_predict(g, 1.0 / 25.0, sensors, cfg)
-            g = ground_absorb(g, contact, t, cfg, above_feet=True, far_factor=factor)
-            errors.append((float(g.position[0]) - truth) / truth)
-        return float(np.median(errors[-20:]))
-
     walkers = [_walker_contacts(seed) for seed in range(3)]
-    assert min(range_error(c, 3.0) for c in walkers) > 0.02
-    assert max(abs(range_error(c, THIN_FAR_FACTOR)) for c in walkers) < 0.016
+    assert min(_range_error(c, True, 3.0) for c in walkers) > 0.02
+    assert max(abs(_range_error(c, True, THIN_FAR_FACTOR)) for c in walkers) < 0.016

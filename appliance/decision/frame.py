@@ -181,7 +181,7 @@ def contact_of(c: Cluster, f: FrameContext, model: GroundModel) -> GroundContact
     contact = ground_contact(camera, (0.5 * (u0 + u1), c.foot_v - 0.5), pose, model)
     if contact is None:
         return None
-    range_m = math.hypot(contact.z[0] - pose.position[0], contact.z[1] - pose.position[1])
+    range_m = contact.range_from(pose)
     shift = foot_halo_shift(range_m, f.speed * f.dt, camera.fy, pose.position[2], f.halo_px,
                             f.flow_std_px)
     foot = min(c.foot_v + shift, float(camera.height))
@@ -196,7 +196,7 @@ def lowered_contact(c: Cluster, f: FrameContext, model: GroundModel,
     u0, _, u1, _ = c.bbox
     pose = f.pose
     if contact is not None:
-        range_m = math.hypot(contact.z[0] - pose.position[0], contact.z[1] - pose.position[1])
+        range_m = contact.range_from(pose)
         row = c.foot_v + foot_halo_shift(range_m, f.speed * f.dt, f.camera.fy,
                                          pose.position[2], f.halo_px, f.flow_std_px)
         if bottom <= row:

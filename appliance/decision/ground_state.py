@@ -145,6 +145,10 @@ class GroundContact:
     def range_m(self) -> float:
         return float(np.hypot(self.z[0], self.z[1]))
 
+    def range_from(self, pose: CameraPose) -> float:
+        """Distance (m) on the road from below the camera of ``pose`` to the contact."""
+        return math.hypot(self.z[0] - pose.position[0], self.z[1] - pose.position[1])
+
 
 def foot_halo_shift(range_m: float, travel_m: float, fy: float, height_m: float, halo_px: float,
                     sigma_px: float) -> float:

@@ -13,7 +13,6 @@ where its legs are thinner than the flow's window, much less (:func:`far_factor`
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -95,10 +94,8 @@ class GroundContact:
                     contact.z, fit[0], f.speed, f.yaw_rate, (f.mount.x_m, f.mount.y_m), model,
                     max(fit[1], RATE_STD_FLOOR))
                 above = lowered_t is not None and f.t - lowered_t <= LOWERED_MEMORY_S
-                pose = f.pose
-                range_m = math.hypot(contact.z[0] - pose.position[0],
-                                     contact.z[1] - pose.position[1])
-                factor = far_factor(range_m, f.camera.fx, f.window_px, model.far_factor)
+                factor = far_factor(contact.range_from(f.pose), f.camera.fx, f.window_px,
+                                    model.far_factor)
                 g = ground_absorb(g, contact, f.t, model, prior, above_feet=above,
                                   far_factor=factor)
         fresh = g is not None and g.t_update == f.t

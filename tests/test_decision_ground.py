@@ -501,6 +501,20 @@ def test_insignificant_velocity_components_are_predicted_as_zero(default_config:
     np.testing.assert_allclose(significant_velocity(vel, P, 0.0), vel)
 
 
+def _sight_state(pos: np.ndarray, mount: MountConfig, position_var: tuple[float, float],
+                 along_std: float, across_std: float) -> tuple[np.ndarray, np.ndarray]:
+    """The unit vector along the line of sight to ``pos`` (vehicle frame, m) and a state
+    covariance (4, 4) of ``[x, y, vx, vy]``: position variances ``position_var``, velocity std
+    ``along_std`` along the line of sight (the range rate) and ``across_std`` across it."""
+    theta = math.atan2(pos[1] - mount.y_m, pos[0] - mount.x_m)
+    along = np.array([math.cos(theta), math.sin(theta)])
+    across = np.array([-math.sin(theta), math.cos(theta)])
+    P = np.zeros((4, 4))
+    P[:2, :2] = np.diag(position_var)
+    P[2:, 2:] = along_std ** 2 * np.outer(along, along) + across_std ** 2 * np.outer(across, across)
+    return along, P
+
+
 def test_a_far_pedestrian_walking_into_the_path_keeps_its_velocity_across_the_line_of_sight(
         default_config: Config) -> None:
     """A pedestrian 38 m ahead, 5 m to the right, walking 1.4 m/s into the path of a car at
@@ -511,12 +525,7 @@ def test_a_far_pedestrian_walking_into_the_path_keeps_its_velocity_across_the_li
     one is the walking speed, known to 0.1 m/s: the pedestrian still walks into the path."""
     mount = default_config.mount
     pos = np.array([mount.x_m + 38.0, -5.0])
-    theta = math.atan2(pos[1] - mount.y_m, pos[0] - mount.x_m)
-    along = np.array([math.cos(theta), math.sin(theta)])
-    across = np.array([-math.sin(theta), math.cos(theta)])
-    P = np.zeros((4, 4))
-    P[:2, :2] = np.diag([4.0, 0.1])
-    P[2:, 2:] = 25.0 * np.outer(along, along) + 0.01 * np.outer(across, across)
+    along, P = _sight_state(pos, mount, (4.0, 0.1), 5.0, 0.1)
     vel = np.array([0.0, 1.4]) + 1.5 * along            # the range rate off by 1.5 m/s
     assert math.sqrt(P[3, 3]) > 0.5 * vel[1]             # per vehicle axis: "insignificant"
     v = significant_velocity(vel, P, 2.0)
@@ -541,12 +550,7 @@ def test_a_cyclist_riding_into_the_path_from_far_aside_meets_the_car(
     the cyclist would cross the line of sight too slowly and pass metres in front."""
     mount = default_config.mount
     pos = np.array([mount.x_m + 40.1, -16.56])
-    theta = math.atan2(pos[1] - mount.y_m, pos[0] - mount.x_m)
-    along = np.array([math.cos(theta), math.sin(theta)])
-    across = np.array([-math.sin(theta), math.cos(theta)])
-    P = np.zeros((4, 4))
-    P[:2, :2] = np.diag([25.0, 4.0])
-    P[2:, 2:] = 4.9 ** 2 * np.outer(along, along) + 0.2 ** 2 * np.outer(across, across)
+    along, P = _sight_state(pos, mount, (25.0, 4.0), 4.9, 0.2)
     vel = np.array([0.0, 4.6]) + 4.8 * along
     speed = 11.2
     v = significant_velocity(vel, P, 2.0)

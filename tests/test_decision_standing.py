@@ -19,6 +19,7 @@ from appliance.decision import standing
 from appliance.decision.ground_state import CameraPose
 from appliance.decision.standing import (
     CELLS,
+    JOIN_RATIO,
     RATES,
     SIDE_CELLS,
     CorridorProbe,
@@ -230,6 +231,25 @@ def test_a_car_in_the_lane_whose_evidence_spreads_nearer_beside_it_is_no_roadsid
     E[k - 2, SIDE_CELLS + CELLS] = 10.0           # and something nearer beside the corridor
     face = nearest_face(E, D, 16.0)
     assert face is not None and face[3] == SIDE_CELLS + CELLS - 1
+    assert joins_roadside(E, D, face[1], face[2], face[3], 16.0)
+
+
+def test_a_parked_car_near_the_camera_beside_a_car_far_ahead_is_no_roadside() -> None:
+    """A car stopped 40 m ahead, its face reaching the corridor's right edge; beside the
+    corridor the street's parked row: a car parked 12 m ahead is no wall turning across the
+    path (less than half as far), one parked 32 m ahead beside it may be."""
+    D = 3.0 * 1.12 ** np.arange(28)
+    n = CELLS + 2 * SIDE_CELLS
+    E = np.full((len(D), n), -5.0)
+    k = int(np.argmin(np.abs(D - 40.0)))
+    E[k, SIDE_CELLS:SIDE_CELLS + 2] = 40.0        # the car's face, at the corridor's edge
+    near = int(np.argmin(np.abs(D - 12.0)))
+    E[near, SIDE_CELLS - 1] = 40.0                # a parked car beside the corridor, 12 m
+    face = nearest_face(E, D, 16.0)
+    assert face is not None and (face[2], face[3]) == (SIDE_CELLS, SIDE_CELLS + 1)
+    assert D[near] < face[1] / JOIN_RATIO
+    assert not joins_roadside(E, D, face[1], face[2], face[3], 16.0)
+    E[k - 2, SIDE_CELLS - 1] = 40.0               # and one beside it, a little nearer
     assert joins_roadside(E, D, face[1], face[2], face[3], 16.0)
 
 

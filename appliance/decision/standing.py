@@ -84,6 +84,9 @@ MIN_RANGE_M = 3.0          # m ahead of the camera, the nearest hypothesis
 RANGE_RATIO = 1.12         # ratio of successive hypothesis distances
 CELLS = 6                  # lateral cells across the corridor
 SIDE_CELLS = 2             # cells of the same width beside it, each side (the roadside test)
+JOIN_RATIO = 2.0           # a roadside's next cell out stands at most this many times nearer
+                           #   than the cell before it (a wall across the path recedes cell by
+                           #   cell; a parked car near the camera beside a car far ahead does not)
 HEIGHTS_M = (0.4, 0.7)     # m above the road, where each hypothesis is probed (beside the
                            #   corridor: the first only)
 RESIDUAL_CLIP = 3.0        # std, a point's residual counts up to this (a truncated Gaussian)
@@ -625,18 +628,23 @@ def joins_roadside(evidence: FloatArray, D: FloatArray, depth: float, c0: int, c
     receding from the kerb: it enters the corridor from beside it, nearer the farther out. A
     car or a pedestrian in the lane has free road beside it; a car's own evidence spreads into
     the corridor cells beside its peak, nearer than the peak (the evidence peaks beyond a
-    face), but not on out of the corridor, nearer still."""
+    face), but not on out of the corridor, nearer still. The roadside recedes cell by cell: in
+    each cell it stands at most ``JOIN_RATIO`` times nearer than in the one before (beside a
+    car stopped 40 m ahead, a car parked 10 m ahead is the street's parked row, not a wall
+    turning across the path)."""
     n = evidence.shape[1]
     for step, start in ((-1, c0 - 1), (1, c1 + 1)):
-        limit, c = depth / RANGE_RATIO, start
+        before, limit, c = depth, depth / RANGE_RATIO, start
         while 0 <= c < n:
-            strong = np.flatnonzero(evidence[:, c] >= 0.5 * threshold)
+            strong = np.flatnonzero((evidence[:, c] >= 0.5 * threshold)
+                                    & (D >= before / JOIN_RATIO))
             nearest = float(D[strong].min()) if len(strong) else math.inf
             if nearest > limit:
                 break
             if c < SIDE_CELLS or c >= SIDE_CELLS + CELLS:
                 return True
-            limit, c = nearest, c + step
+            before = limit = nearest
+            c += step
     return False
 
 

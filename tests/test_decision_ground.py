@@ -17,6 +17,7 @@ from appliance.decision.ground_state import (
     GroundContact,
     GroundTrack,
     back_project,
+    bearing_innovation,
     bearing_update,
     camera_pose,
     foot_halo_shift,
@@ -27,6 +28,7 @@ from appliance.decision.ground_state import (
     range_rate_update,
     update_body_pitch,
 )
+from appliance.decision.hidden import BEARING_GATE_SIGMAS, BEARING_STD_PX
 from appliance.decision.scale_ttc import (
     independent_windows,
     measure_expansion,
@@ -639,6 +641,27 @@ def test_a_bearing_corrects_only_across_the_line_of_sight() -> None:
     assert np.all(np.linalg.eigvalsh(out.P) > 0.0)
     assert float(n @ out.P[:2, :2] @ n) < float(n @ g.P[:2, :2] @ n)
     assert bearing_update(g, math.nan, cam, 0.003) is g
+
+
+def test_a_bearing_is_gated_by_the_coasted_states_own_uncertainty() -> None:
+    """A hidden pedestrian's state coasted 20 m ahead, 3 m right, on a lateral speed its last
+    sightings underestimated: its head shows 0.5 m further left (17 px at fx 700, beyond 3 std
+    of the head column alone). While the state is 0.3 m unsure across the ray the head is
+    within 3 std of the innovation and corrects it; a state sure to 5 cm rejects it."""
+    cam = (1.9, 0.0)
+    x = np.array([21.9, -3.0, 0.0, 1.0])
+    az = math.atan2(-2.5, 20.0)
+    std = 2.0 / 700.0
+    r = math.hypot(20.0, 3.0)
+    assert abs(0.5 / r * 700.0) > BEARING_GATE_SIGMAS * BEARING_STD_PX
+    for pos_std, inside in ((0.3, True), (0.05, False)):
+        g = GroundTrack(x, np.diag([pos_std ** 2, pos_std ** 2, 0.25, 0.25]), 1.0, 12)
+        nu, S = bearing_innovation(g, az, cam, std)
+        n = np.array([-math.sin(az), math.cos(az)])
+        assert nu == pytest.approx(-float(n @ (x[:2] - np.array(cam))))
+        assert abs(nu) == pytest.approx(0.5 * 20.0 / r, rel=0.02)    # 0.5 m across the ray
+        assert S == pytest.approx(pos_std ** 2 + (r * std) ** 2)
+        assert (nu * nu <= BEARING_GATE_SIGMAS ** 2 * S) is inside
 
 
 def _follow_braking_car(cfg: GroundModel, seed: int = 0, mount: MountConfig | None = None,

@@ -363,6 +363,19 @@ def bearing_rate_update(g: GroundTrack, bearing_rate: float, speed: float, yaw_r
     return velocity_update(g, los.tangent, los.crossing, los.r * rate_std)
 
 
+def bearing_innovation(g: GroundTrack, azimuth: float, camera_xy: tuple[float, float],
+                       std_rad: float) -> tuple[float, float]:
+    """The innovation of a measured ``azimuth`` (rad, vehicle frame, seen from the camera at
+    ``camera_xy``; ``std_rad`` its std) against the state: how far (m) the state's position
+    lies across the ray, negated, and that distance's variance (m^2: the state's across-ray
+    position variance and the measurement's at the state's range)."""
+    c = np.asarray(camera_xy, dtype=np.float64)
+    r = float(np.hypot(*(g.x[:2] - c)))
+    n = np.array([-math.sin(azimuth), math.cos(azimuth)])
+    S = float(n @ g.P[:2, :2] @ n) + (r * std_rad) ** 2
+    return -float(n @ (g.x[:2] - c)), S
+
+
 def bearing_update(g: GroundTrack, azimuth: float, camera_xy: tuple[float, float],
                    std_rad: float) -> GroundTrack:
     """Update of the position and velocity across the line of sight with a measured
@@ -380,9 +393,8 @@ def bearing_update(g: GroundTrack, azimuth: float, camera_xy: tuple[float, float
     T = np.zeros((2, len(g.x)))
     T[0, :2], T[1, 2:4] = n, n                 # across-ray position and velocity
     H = T[:1]
-    S = float((H @ g.P @ H.T)[0, 0]) + (r * std_rad) ** 2
+    innovation, S = bearing_innovation(g, azimuth, camera_xy, std_rad)
     K = T.T @ (T @ g.P @ H.T) / S              # (n, 1): the gain of the across-ray components
-    innovation = -float(n @ (g.x[:2] - c))
     x = g.x + K[:, 0] * innovation
     A = np.eye(len(g.x)) - K @ H
     P = A @ g.P @ A.T + (r * std_rad) ** 2 * (K @ K.T)

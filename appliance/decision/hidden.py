@@ -11,6 +11,7 @@ sight. The flow at those pixels is measured by vision: :func:`hidden_probes` nam
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import replace
 
@@ -18,7 +19,7 @@ from appliance.config import HiddenConfig, WarningConfig
 from appliance.decision.assess import TrackThreat, assess
 from appliance.decision.cues import TrackCues
 from appliance.decision.frame import FrameContext
-from appliance.decision.ground_state import bearing, bearing_update
+from appliance.decision.ground_state import bearing, bearing_innovation, bearing_update
 from appliance.decision.lost_tracks import (
     COURSE_POINTS,
     COVER_FRAMES,
@@ -36,7 +37,8 @@ from appliance.decision.occlusion import (
 from appliance.vision.probes import PointFlow
 
 BEARING_STD_PX = 2.0       # px, std of a hidden object's head column as a bearing measurement
-BEARING_GATE_SIGMAS = 3.0  # a head column further than this (std) from the coasted one is not it
+BEARING_GATE_SIGMAS = 3.0  # a head column further than this (std of its innovation: the coasted state's
+#                            across-ray uncertainty and the head's) from the coasted one is not it
 
 
 def hidden_probes(lost: tuple[LostTrack, ...], f: FrameContext, cfg: HiddenConfig
@@ -86,14 +88,18 @@ def hidden_threats(lost: tuple[LostTrack, ...], probes: Mapping[tuple[str, int, 
             lt = lt.with_course(count)
             g = lt.cues.ground
             if g is not None and lt.seen_on_course and not lt.off_course \
-                    and count >= COURSE_POINTS \
-                    and abs(column - float(coasted.x[0, 0])) <= BEARING_GATE_SIGMAS * BEARING_STD_PX:
-                # the head keeping its bearing is where the hidden object is, across the ray
+                    and count >= COURSE_POINTS and math.isfinite(column):
+                # the head keeping its bearing is where the hidden object is, across the ray,
+                # where the coasted state may be (its own uncertainty and the head's: a state
+                # coasting on a lateral speed its last sightings underestimated lags behind)
                 azimuth = bearing(f.camera, (column, float(coasted.x[1, 0])), f.pose)
-                g = bearing_update(g, azimuth, (f.pose.position[0], f.pose.position[1]),
-                                   BEARING_STD_PX / f.camera.fx)
-                lt = replace(lt, cues=TrackCues(ground=g, states=lt.cues.states))
-                coasted = coasted_track(lt, f.t, f.pose, f.mount.x_m, f.camera, cfg.warn_s)
+                camera_xy = (f.pose.position[0], f.pose.position[1])
+                std_rad = BEARING_STD_PX / f.camera.fx
+                nu, S = bearing_innovation(g, azimuth, camera_xy, std_rad)
+                if nu * nu <= BEARING_GATE_SIGMAS ** 2 * S:
+                    g = bearing_update(g, azimuth, camera_xy, std_rad)
+                    lt = replace(lt, cues=TrackCues(ground=g, states=lt.cues.states))
+                    coasted = coasted_track(lt, f.t, f.pose, f.mount.x_m, f.camera, cfg.warn_s)
         seen.append(lt)
         if coasted is not None and lt.covered() and not lt.off_course:
             threats.append(assess(coasted, lt.cues, f, warning, coasted=True))

@@ -37,8 +37,9 @@ from appliance.decision.occlusion import (
 from appliance.vision.probes import PointFlow
 
 BEARING_STD_PX = 2.0       # px, std of a hidden object's head column as a bearing measurement
-BEARING_GATE_SIGMAS = 3.0  # a head column further than this (std of its innovation: the coasted state's
-#                            across-ray uncertainty and the head's) from the coasted one is not it
+BEARING_GATE_SIGMAS = 3.0  # a head column further than this from the coasted one is not it (std
+#                            of the innovation: the coasted state's across-ray uncertainty and the
+#                            head's)
 
 
 def hidden_probes(lost: tuple[LostTrack, ...], f: FrameContext, cfg: HiddenConfig

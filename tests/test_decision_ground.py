@@ -41,6 +41,7 @@ from appliance.decision.threat import (
     fuse,
     near_side_gap,
     outline_gap,
+    path_expansion,
     predict_path,
     significant_acceleration,
     significant_speed,
@@ -366,6 +367,30 @@ def test_bumper_correction_and_fusion(default_config: Config) -> None:
     assert f is not None and f[0] == pytest.approx(expected)
     assert f[1] < 0.1
     assert fuse(None, (1.0, 0.1)) == (1.0, 0.1) and fuse(None, None) is None
+
+
+@pytest.mark.parametrize("pan", [0.0, 0.4])
+def test_the_expansion_a_path_implies_is_the_image_growth_of_the_object(pan: float) -> None:
+    """An object 1.8 m wide at depth Z seen by a camera looking along ``pan``: the growth of its
+    image width over a short step, ln(w' / w) / dt, is what ``path_expansion`` implies from its
+    velocity over ground and the ego speed; one driving along with the car at its speed does
+    not grow at all."""
+    axis = np.array([math.cos(pan), math.sin(pan)])
+    cam = np.array([1.6, 0.0])
+    obj = cam + 25.0 * axis + 3.0 * np.array([-axis[1], axis[0]])   # 3 m off the axis
+    speed, dt, fx = 14.0, 1e-3, 800.0
+
+    def width_px(t: float, vel: np.ndarray) -> float:
+        rel = obj + (vel - np.array([speed, 0.0])) * t - cam   # the ego drives along x
+        return fx * 1.8 / float(axis @ rel)
+
+    for vel in (np.zeros(2), np.array([4.0, -1.5]), np.array([speed, 0.0])):
+        measured = math.log(width_px(dt, vel) / width_px(0.0, vel)) / dt
+        depth = float(axis @ (obj - cam))
+        implied = path_expansion(depth, axis, vel, speed)
+        assert implied == pytest.approx(measured, rel=1e-2, abs=1e-4), vel
+    assert path_expansion(25.0, np.array([1.0, 0.0]), np.array([speed, 0.0]), speed) == 0.0
+    assert path_expansion(0.3, np.array([1.0, 0.0]), np.zeros(2), speed) is None
 
 
 def test_outlier_contacts_are_skipped_and_a_run_of_them_restarts(default_config: Config) -> None:

@@ -9,6 +9,9 @@ from appliance.config import Config, WarningConfig
 from appliance.decision.assess import TrackThreat
 from appliance.decision.warnings import (
     FAST_MOVER_M_S,
+    GROWTH_SHARE,
+    GROWTH_SIGMAS,
+    indication,
     HIDDEN_MIN_PROBABILITY,
     ONLY_MAY_STAND,
     WarningState,
@@ -329,3 +332,87 @@ def test_without_the_ego_motion_a_track_raises_at_most_a_caution(default_config:
     levels, events = run(cfg, [(threat(1, 1.0),)] * 4 + [(blind,)] * 40)
     assert [e.level for e in events] == [2, 1]
     assert events[1].t - events[0].t == pytest.approx(cfg.hold_s, abs=1.5 / FPS)
+
+
+def test_a_track_whose_image_does_not_grow_as_its_path_implies_raises_no_level(
+        default_config: Config) -> None:
+    """A car 50 m ahead two lanes over drives along with the traffic: it keeps its bearing, its
+    3-D state knows nothing yet of its speed along the line of sight and predicts it standing,
+    closing at the ego speed (the path needs an expansion of 0.5/s); the scale cue measures its
+    image not growing. No level, and the reason says so. The same track whose image grows,
+    ``GROWTH_SIGMAS`` std above its measure, at least ``GROWTH_SHARE`` as fast as its path
+    implies warns: a rigid body's growth and its 3-D state may differ by a fifth."""
+    from dataclasses import replace
+
+    cfg = default_config.warning
+    still = replace(threat(1, 1.8), growth=(0.5, -0.08, 0.05))
+    levels, events = run(cfg, [(still,)] * 10)
+    assert events == [] and max(levels) == 0
+    assert reasons(cfg, [(still,)] * 3)[-1][1] == "image grows at -0.08/s, its path needs 0.50/s"
+    least = GROWTH_SHARE * 0.5
+    for k, sd in ((0.5, 0.05), (0.4, 0.01), (least - (GROWTH_SIGMAS - 0.2) * 0.05, 0.05),
+                  (0.9, 0.05)):
+        grows = replace(threat(1, 1.8), growth=(0.5, k, sd))
+        levels, events = run(cfg, [(grows,)] * 10)
+        assert [e.level for e in events] == [2], k
+    short = replace(threat(1, 1.8), growth=(0.5, least - (GROWTH_SIGMAS + 0.2) * 0.05, 0.05))
+    levels, events = run(cfg, [(short,)] * 10)
+    assert events == [], "growth GROWTH_SIGMAS std short of GROWTH_SHARE of the path's"
+
+
+@pytest.mark.parametrize("ahead_m, checked", [(55.0, True), (18.0, False)])
+def test_the_growth_is_checked_where_the_ground_contact_is_too_far_to_measure_the_closing_speed(
+        default_config: Config, ahead_m: float, checked: bool) -> None:
+    """``assess`` on a track predicted standing ahead of a car at 25 m/s whose image the scale
+    cue measures not growing. 55 m ahead one image row of its contact spans more than
+    ``FAR_CONTACT_M_PER_PX`` of depth: the growth its path needs is reported and keeps it from a
+    level. 18 m ahead the contact measures the closing speed itself: no growth is reported
+    (there the scale cue of a walker's legs is the weaker of the two) and the path decides."""
+    from appliance.decision.assess import FAR_CONTACT_M_PER_PX, assess
+    from appliance.decision.cues import TrackCues
+    from appliance.decision.cues.ground import GroundState
+    from appliance.decision.cues.motion import MotionState
+    from appliance.decision.cues.peaks import PeakState
+    from appliance.decision.cues.scale import ScaleCueState
+    from appliance.decision.frame import FrameContext
+    from appliance.decision.ground_state import GroundTrack, camera_pose
+    from appliance.decision.scale_ttc import ScaleState
+    from appliance.decision.threat import contact_depth_per_px
+    from appliance.decision.tracking import ImageTrack
+    from appliance.messages import EgoMotion, SensorSample
+    from appliance.pipeline import camera_from_config
+
+    cfg = default_config
+    camera = camera_from_config(cfg)
+    sensors = SensorSample(t=0.0, speed_m_s=25.0, yaw_rate_rad_s=0.0)
+    pose = camera_pose(cfg.mount, 0.0, sensors)
+    zero = np.zeros(3)
+    ego = EgoMotion(zero, np.array([0.0, 0.0, 1.0]), None, zero, np.array([0.0, 0.0, 1.0]), None,
+                    100, True)
+    f = FrameContext(t=0.0, dt=1 / FPS, pose=pose, sensors=sensors, ego=ego, odo=(0.0, 0.0, 0.0),
+                     camera=camera, mount=cfg.mount, window_px=15, flow_std_px=0.3)
+    x = cfg.mount.x_m + ahead_m
+    ground = GroundTrack(x=np.array([x, 0.0, 0.0, 0.0]), P=np.diag([4.0, 0.25, 64.0, 1.0]),
+                         t_update=0.0, updates=8)
+    scale = ScaleCueState(scale=ScaleState(k=-0.05, var=0.05 ** 2, n=10), expansion=None,
+                          trusted=True, ttc=None)
+    cues = TrackCues(ground=ground, states={"ground": GroundState(ground=ground, fresh=True),
+                                            "motion": MotionState(moved=True), "scale": scale,
+                                            "peaks": PeakState(height_peak_m=1.5)})
+    track = ImageTrack(uid=1, id=1, x=np.array([[320.0, 0.0, 0.0], [240.0, 0.0, 0.0]]),
+                       P=np.tile(np.eye(3), (2, 1, 1)), size=(1.8 * camera.fx / ahead_m, 40.0),
+                       age=20, misses=0, cluster=None, probability=0.9)
+    th = assess(track, cues, f, cfg.warning)
+    far = contact_depth_per_px(ahead_m, camera.fy, cfg.mount.z_m) >= FAR_CONTACT_M_PER_PX
+    assert far == checked
+    assert th.on_course and th.ttc is not None and th.ttc < cfg.warning.ttc_caution_s
+    levels, events = run(cfg.warning, [(th,)] * 10)
+    if checked:
+        assert th.growth is not None
+        implied, k, _ = th.growth
+        assert implied == pytest.approx(25.0 / ahead_m, rel=0.05) and k == -0.05
+        assert events == [] and max(levels) == 0
+        assert str(indication(th, 3.0, cfg.warning)).startswith("image grows at -0.05/s")
+    else:
+        assert th.growth is None
+        assert [e.level for e in events] == [2], indication(th, 3.0, cfg.warning)

@@ -21,13 +21,16 @@ from appliance.decision.cues import TrackCues
 from appliance.decision.cues.bearing import bearing_rate
 from appliance.decision.cues.peaks import clip_box
 from appliance.decision.frame import FrameContext
+from appliance.decision.ground_state import ground_in_camera, road_axis
 from appliance.decision.threat import (
     bumper_ttc,
     constant_bearing_course,
     fuse,
     ground_ttc_std,
+    contact_depth_per_px,
     near_side_gap,
     object_radius,
+    path_expansion,
     predict_path,
     scale_lateral_miss,
     significant_acceleration,
@@ -37,6 +40,8 @@ from appliance.decision.threat import (
 from appliance.decision.tracking import ImageTrack
 from appliance.messages import TrackReport
 
+FAR_CONTACT_M_PER_PX = 1.0   # m of depth per image row beyond which a ground contact cannot
+                              # tell a car closing at the ego speed from one driving along
 CORRIDOR_HYSTERESIS_M = 0.3   # m, an issued level is kept while the path meets the corridor widened by this
 BEARING_TOLERANCE_RAD = 0.02  # rad, without a range: bearing change until contact that still counts
                               # as a constant-bearing collision course
@@ -63,7 +68,11 @@ class TrackThreat:
     closing: how much nearer such an obstacle comes per metre driven (None: not yet known);
     stopped: such an obstacle continues the track of a mover that came to a stop (handover.py);
     suspected: such an obstacle whose evidence has not yet reached the threshold (raises at
-    most a caution)."""
+    most a caution); growth: (k the path implies, k measured, its std) in 1/s, the expansion
+    rate of its image its predicted velocity implies (``threat.path_expansion``) and the one the
+    scale cue measures once trusted, where the ground contact is far (one image row spans
+    ``FAR_CONTACT_M_PER_PX`` or more of depth: its rows cannot measure the speed along the line
+    of sight, which the 3-D state then takes from its prior, standing), else None."""
 
     report: TrackReport
     on_course: bool
@@ -81,6 +90,7 @@ class TrackThreat:
     closing: float | None = None
     stopped: bool = False
     suspected: bool = False
+    growth: tuple[float, float, float] | None = None
 
     @property
     def ttc(self) -> float | None:
@@ -105,6 +115,7 @@ def assess(track: ImageTrack, cues: TrackCues, f: FrameContext, cfg: WarningConf
     miss: float | None = None
     miss_ahead = False
     ground_est: tuple[float, float] | None = None
+    growth: tuple[float, float, float] | None = None
     on_course = on_wide = False
     depth: float | None = None
     g = cues.ground
@@ -131,6 +142,13 @@ def assess(track: ImageTrack, cues: TrackCues, f: FrameContext, cfg: WarningConf
         miss = None if on_course else base.closest
         miss_ahead = not on_course and base.ahead
         ttc_g = base.ttc if base.ttc is not None else wide.ttc
+        axis = road_axis(f.pose)
+        implied = None if axis is None else path_expansion(
+            float(ground_in_camera(f.pose, pos)[2]), axis, vel, speed)
+        far = contact_depth_per_px(rng, camera.fy, f.pose.position[2]) >= FAR_CONTACT_M_PER_PX
+        if far and implied is not None and scale_state is not None and scale_state.trusted \
+                and not coasted:
+            growth = (implied, scale_state.scale.k, float(np.sqrt(scale_state.scale.var)))
         if ttc_g is not None:
             ground_est = (ttc_g, ground_ttc_std(pos, g.P, ttc_g, speed, vel))
     if g is not None and not ego_known:
@@ -182,4 +200,4 @@ def assess(track: ImageTrack, cues: TrackCues, f: FrameContext, cfg: WarningConf
         g.velocity, g.measured_covariance, VELOCITY_SIGNIFICANCE)
     return TrackThreat(report=report, on_course=on_course, on_course_wide=on_wide, miss_m=miss,
                        miss_ahead=miss_ahead, moving=moving, speed_m_s=least, height_m=height,
-                       coasted=coasted, ego_known=ego_known)
+                       coasted=coasted, ego_known=ego_known, growth=growth)

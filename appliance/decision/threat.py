@@ -155,6 +155,25 @@ def ground_ttc_std(position: NDArray[np.floating], P: NDArray[np.floating], ttc:
     return math.sqrt(max(var, 1e-6)) / closing
 
 
+def path_expansion(depth_m: float, axis: NDArray[np.floating], velocity: NDArray[np.floating],
+                   speed: float) -> float | None:
+    """The expansion rate k (1/s) the image of an object at camera depth ``depth_m`` shows when
+    it moves over ground at ``velocity`` (m/s, vehicle x, y) and the ego vehicle drives along x
+    at ``speed``: its closing speed along the camera's axis on the road (``axis``, unit (2,))
+    over its depth, k = c / Z (collision-course.md, ``TTC ~ dt * s / ds``). None within half a
+    metre of the camera plane."""
+    if depth_m <= 0.5:
+        return None
+    closing = speed * float(axis[0]) - float(np.dot(axis, velocity))
+    return closing / depth_m
+
+
+def contact_depth_per_px(range_m: float, fy: float, camera_height_m: float) -> float:
+    """Metres of depth one image row of a ground contact spans at ``range_m`` (flat road,
+    camera ``camera_height_m`` above it): r^2 / (fy h)."""
+    return range_m * range_m / (fy * max(camera_height_m, 1e-3))
+
+
 def fuse(a: tuple[float, float] | None, b: tuple[float, float] | None
          ) -> tuple[float, float] | None:
     """Inverse-variance weighted mean of two (value, std) estimates; either may be None."""

@@ -13,7 +13,12 @@ predicted path meets the ego corridor and with what TTC. From that:
   motion (eq. 20, smoothed) of at least ``min_probability``: false detections on
   road texture are weak and patchy, real movers are not; and, with a ground contact,
   only for a box at least ``min_height_m`` tall at that depth (a road user, not a strip
-  of road). A track moving over ground at ``FAST_MOVER_M_S`` or more (a car, a cyclist;
+  of road); and, where its ground contact is too far to measure its speed along the line of
+  sight (``assess.FAR_CONTACT_M_PER_PX``), only while its image grows as its predicted path
+  implies (the scale cue's expansion rate, once trusted, ``GROWTH_SIGMAS`` std above it, at
+  least ``GROWTH_SHARE`` of the closing speed over depth): a car 50 m ahead that keeps its bearing as it drives
+  along with the traffic is predicted standing, closing at the ego speed, and its image does
+  not grow. A track moving over ground at ``FAST_MOVER_M_S`` or more (a car, a cyclist;
   the speed it moves at least, 2 std below its estimate) needs no ``min_probability``: a
   lead car at the epipole shows little independent flow.
   A hidden track, assessed from its coasted 3-D state, needs ``HIDDEN_MIN_PROBABILITY``
@@ -57,6 +62,8 @@ from appliance.messages import TrackReport, WarningEvent
 MIN_CLOSING = 0.5             # a standing obstacle comes nearer by at least this per metre driven
 FAST_MOVER_M_S = 5.0          # m/s over ground: a car or cyclist needs no min_probability
 HIDDEN_MIN_PROBABILITY = 0.55  # min_probability of a hidden track (its highest while seen)
+GROWTH_SIGMAS = 3.0           # far away, an image growing at most GROWTH_SHARE as fast as its
+GROWTH_SHARE = 0.5            #   path implies (this many std) keeps a track from a level
 LEVEL_NAMES = {1: "caution", 2: "warning"}
 ONLY_MAY_STAND = "only may stand, its evidence short of the threshold"   # why a caution
 #                  within the warning's TTC is no warning (standing.SUSPECT_SHARE)
@@ -97,8 +104,8 @@ def indication(th: TrackThreat, threshold: float, cfg: WarningConfig) -> str | N
     """Why ``th`` does not indicate a level whose TTC threshold is ``threshold`` (s); None when
     it does. The one place that decides whether a track may warn: it moves over ground, it
     stands up from the road, its evidence of independent motion is strong enough (or it is a
-    fast mover), its path meets the corridor, and its time to collision is within the
-    threshold."""
+    fast mover), its path meets the corridor, its time to collision is within the threshold,
+    and, far away, its image grows as its path implies."""
     if th.ego_known and not th.moving and not th.standing:
         return "not moving over ground"
     if th.standing and th.roadside:
@@ -124,6 +131,10 @@ def indication(th: TrackThreat, threshold: float, cfg: WarningConfig) -> str | N
         return "no time to collision"
     if th.ttc > threshold:
         return f"ttc {th.ttc:.1f} s above {threshold:.1f} s"
+    if th.growth is not None:
+        implied, k, sd = th.growth
+        if k + GROWTH_SIGMAS * sd < GROWTH_SHARE * implied:
+            return f"image grows at {k:.2f}/s, its path needs {implied:.2f}/s"
     return None
 
 

@@ -36,7 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from appliance.config import Config
-from appliance.vision.flow import fb_covariance, track
+from appliance.vision.flow import FB_LENGTH_GAIN, fb_covariance, track
 from appliance.vision.geometry import FloatArray, PinholeCamera
 from appliance.vision.likelihood import (
     CameraMotion,
@@ -130,7 +130,8 @@ def longer_magnitude(past: tuple[PastFrame, ...], image: NDArray[np.uint8], t_no
     long = CameraMotion(R=R, t_dir=t_m / length, t_m=t_m, standstill=False, K=camera.K)
     flow_t = ideal[pick] - derotate(camera.K, R, camera.undistort(back.end))
     f_s = road_static_flow(ideal[pick], long, road)
-    _, s_along = flow_std(fb_covariance(back.fb_error), np.nan_to_num(f_s), cfg.detection)
+    _, s_along = flow_std(fb_covariance(back.fb_error, FB_LENGTH_GAIN), np.nan_to_num(f_s),
+                         cfg.detection)
     relative = road_flow_error(ideal[pick], road, camera, cfg.detection.magnitude_sigma)
     magnitude = magnitude_cue_from_static(standing_still_at_most(flow_t, f_s), f_s, cfg.detection,
                                           s_along, relative)

@@ -241,9 +241,11 @@ def beyond_reach(f_s: FloatArray, cfg: DetectionConfig) -> NDArray[np.bool_]:
 
 def motion_cues(x_prev: NDArray[np.floating], x_cur: NDArray[np.floating], motion: CameraMotion,
                 road: RoadPlane | None, cfg: DetectionConfig,
-                flow_cov: FloatArray | None = None, foot: FloatArray | None = None) -> Cues:
+                flow_cov: FloatArray | None = None, foot: FloatArray | None = None,
+                length_cov: FloatArray | None = None) -> Cues:
     """All cues at N measurements ``x_prev -> x_cur`` (ideal pixels, (N, 2) each);
-    flow_cov (N, 3) px^2: each flow's LK covariance (:func:`flow_std`), or None."""
+    flow_cov (N, 3) px^2: each flow's LK covariance (:func:`flow_std`), or None;
+    length_cov: the covariance the flow-length cue takes instead, if given."""
     x_prev = np.asarray(x_prev, dtype=np.float64).reshape(-1, 2)
     x_cur = np.asarray(x_cur, dtype=np.float64).reshape(-1, 2)
     p = derotate(motion.K, motion.R, x_prev)
@@ -258,6 +260,8 @@ def motion_cues(x_prev: NDArray[np.floating], x_cur: NDArray[np.floating], motio
     else:
         d_e = np.full(len(p), np.inf)
     s_across, s_along = flow_std(flow_cov, static_dir, cfg)
+    if length_cov is not None:
+        _, s_along = flow_std(length_cov, static_dir, cfg)
     direction = direction_cue(flow_t, static_dir, d_e, cfg, s_across)
     f_s = road_static_flow(x_cur, motion, road, foot)
     magnitude = magnitude_cue_from_static(flow_t, f_s, cfg, s_along)

@@ -28,7 +28,7 @@ from appliance.vision.detection import (
     resample_particles,
 )
 from appliance.vision.epipolar import translation_from_theta
-from appliance.vision.flow import Tracks, corner_candidates, fb_covariance, track
+from appliance.vision.flow import FB_LENGTH_GAIN, Tracks, corner_candidates, fb_covariance, track
 from appliance.vision.geometry import (
     FloatArray,
     PinholeCamera,
@@ -241,13 +241,14 @@ def perceive(state: VisionState, frame: Frame, sensors: SensorSample,
     valid = tracks.valid[:n]
     motion = CameraMotion(R=R, t_dir=t_dir, t_m=t_m, standstill=prior.standstill, K=camera.K)
     cov = fb_covariance(tracks.fb_error)
+    length_cov = fb_covariance(tracks.fb_error, FB_LENGTH_GAIN)
     foot = None
     if prob_map is not None:
         feet = foot_points(prob_map.p, prob_map.scale, tracks.end, FOOT_PROBABILITY,
                            camera.height, FOOT_GAP_PX)
         foot = camera.undistort(np.nan_to_num(feet, nan=0.0))
         foot[np.isnan(feet[:, 0])] = np.nan
-    cues = motion_cues(ideal_start, ideal_end, motion, road, cfg.detection, cov, foot)
+    cues = motion_cues(ideal_start, ideal_end, motion, road, cfg.detection, cov, foot, length_cov)
     past = (*state.past, PastFrame(state.prev_image, state.prev_t,
                                    None if t_m is None else (R, t_m)))[-HISTORY:]
     cues = _longer_baseline(cues, past, image, frame.t, tracks, ideal_start, ideal_end, road,

@@ -192,7 +192,8 @@ def test_weak_or_static_tracks_raise_no_level(default_config: Config) -> None:
 def test_a_fast_mover_needs_no_eq20_probability(default_config: Config) -> None:
     """A lead car at the epipole carries an eq. 20 probability of 0.5-0.7: a track moving over
     ground at ``FAST_MOVER_M_S`` or more raises its level anyway; a slow one with the same
-    probability does not, nor a fast one that is not moving, off course or flat."""
+    probability does not, nor a fast one that is not moving, off course or flat, or whose image
+    grows as something standing there would."""
     from dataclasses import replace
 
     cfg = default_config.warning
@@ -205,7 +206,7 @@ def test_a_fast_mover_needs_no_eq20_probability(default_config: Config) -> None:
     levels, events = run(cfg, [(slow,)] * 10)
     assert events == [] and max(levels) == 0
     for other in (replace(fast, moving=False), replace(fast, on_course=False, on_course_wide=False),
-                  replace(fast, height_m=0.1)):
+                  replace(fast, height_m=0.1), replace(fast, grows_standing=True)):
         levels, events = run(cfg, [(other,)] * 10)
         assert events == [] and max(levels) == 0, other
 
@@ -360,15 +361,13 @@ def test_a_track_whose_image_does_not_grow_as_its_path_implies_raises_no_level(
     assert events == [], "growth GROWTH_SIGMAS std short of GROWTH_SHARE of the path's"
 
 
-@pytest.mark.parametrize("ahead_m, checked", [(55.0, True), (18.0, False)])
-def test_the_growth_is_checked_where_the_ground_contact_is_too_far_to_measure_the_closing_speed(
-        default_config: Config, ahead_m: float, checked: bool) -> None:
-    """``assess`` on a track predicted standing ahead of a car at 25 m/s whose image the scale
-    cue measures not growing. 55 m ahead one image row of its contact spans more than
-    ``FAR_CONTACT_M_PER_PX`` of depth: the growth its path needs is reported and keeps it from a
-    level. 18 m ahead the contact measures the closing speed itself: no growth is reported
-    (there the scale cue of a walker's legs is the weaker of the two) and the path decides."""
-    from appliance.decision.assess import FAR_CONTACT_M_PER_PX, assess
+def assessed(cfg: Config, ahead_m: float, velocity: tuple[float, float], k: float,
+             probability: float = 0.9, speed: float = 25.0, along_std: float = 8.0
+             ) -> TrackThreat:
+    """``assess`` on a track ``ahead_m`` in front of the camera in the middle of the lane, its
+    3-D state moving at ``velocity`` over ground (known to 1 m/s across, ``along_std`` along),
+    its image growing at ``k`` (1/s, std 0.05) by the scale cue, the car driving at ``speed``."""
+    from appliance.decision.assess import assess
     from appliance.decision.cues import TrackCues
     from appliance.decision.cues.ground import GroundState
     from appliance.decision.cues.motion import MotionState
@@ -377,33 +376,45 @@ def test_the_growth_is_checked_where_the_ground_contact_is_too_far_to_measure_th
     from appliance.decision.frame import FrameContext
     from appliance.decision.ground_state import GroundTrack, camera_pose
     from appliance.decision.scale_ttc import ScaleState
-    from appliance.decision.threat import contact_depth_per_px
     from appliance.decision.tracking import ImageTrack
     from appliance.messages import EgoMotion, SensorSample
     from appliance.pipeline import camera_from_config
 
-    cfg = default_config
     camera = camera_from_config(cfg)
-    sensors = SensorSample(t=0.0, speed_m_s=25.0, yaw_rate_rad_s=0.0)
+    sensors = SensorSample(t=0.0, speed_m_s=speed, yaw_rate_rad_s=0.0)
     pose = camera_pose(cfg.mount, 0.0, sensors)
     zero = np.zeros(3)
     ego = EgoMotion(zero, np.array([0.0, 0.0, 1.0]), None, zero, np.array([0.0, 0.0, 1.0]), None,
                     100, True)
     f = FrameContext(t=0.0, dt=1 / FPS, pose=pose, sensors=sensors, ego=ego, odo=(0.0, 0.0, 0.0),
                      camera=camera, mount=cfg.mount, window_px=15, flow_std_px=0.3)
-    x = cfg.mount.x_m + ahead_m
-    ground = GroundTrack(x=np.array([x, 0.0, 0.0, 0.0]), P=np.diag([4.0, 0.25, 64.0, 1.0]),
-                         t_update=0.0, updates=8)
-    scale = ScaleCueState(scale=ScaleState(k=-0.05, var=0.05 ** 2, n=10), expansion=None,
+    ground = GroundTrack(x=np.array([cfg.mount.x_m + ahead_m, 0.0, *velocity]),
+                         P=np.diag([4.0, 0.25, along_std ** 2, 1.0]), t_update=0.0, updates=8)
+    scale = ScaleCueState(scale=ScaleState(k=k, var=0.05 ** 2, n=10), expansion=None,
                           trusted=True, ttc=None)
     cues = TrackCues(ground=ground, states={"ground": GroundState(ground=ground, fresh=True),
                                             "motion": MotionState(moved=True), "scale": scale,
                                             "peaks": PeakState(height_peak_m=1.5)})
     track = ImageTrack(uid=1, id=1, x=np.array([[320.0, 0.0, 0.0], [240.0, 0.0, 0.0]]),
                        P=np.tile(np.eye(3), (2, 1, 1)), size=(1.8 * camera.fx / ahead_m, 40.0),
-                       age=20, misses=0, cluster=None, probability=0.9)
-    th = assess(track, cues, f, cfg.warning)
-    far = contact_depth_per_px(ahead_m, camera.fy, cfg.mount.z_m) >= FAR_CONTACT_M_PER_PX
+                       age=20, misses=0, cluster=None, probability=probability)
+    return assess(track, cues, f, cfg.warning)
+
+
+@pytest.mark.parametrize("ahead_m, checked", [(55.0, True), (18.0, False)])
+def test_the_growth_is_checked_where_the_ground_contact_is_too_far_to_measure_the_closing_speed(
+        default_config: Config, ahead_m: float, checked: bool) -> None:
+    """``assess`` on a track predicted standing ahead of a car at 25 m/s whose image the scale
+    cue measures not growing. 55 m ahead one image row of its contact spans more than
+    ``FAR_CONTACT_M_PER_PX`` of depth: the growth its path needs is reported and keeps it from a
+    level. 18 m ahead the contact measures the closing speed itself: no growth is reported
+    (there the scale cue of a walker's legs is the weaker of the two) and the path decides."""
+    from appliance.decision.assess import FAR_CONTACT_M_PER_PX
+    from appliance.decision.threat import contact_depth_per_px
+
+    cfg = default_config
+    th = assessed(cfg, ahead_m, (0.0, 0.0), -0.05)
+    far = contact_depth_per_px(ahead_m, cfg.camera.fy, cfg.mount.z_m) >= FAR_CONTACT_M_PER_PX
     assert far == checked
     assert th.on_course and th.ttc is not None and th.ttc < cfg.warning.ttc_caution_s
     levels, events = run(cfg.warning, [(th,)] * 10)
@@ -416,3 +427,23 @@ def test_the_growth_is_checked_where_the_ground_contact_is_too_far_to_measure_th
     else:
         assert th.growth is None
         assert [e.level for e in events] == [2], indication(th, 3.0, cfg.warning)
+
+
+@pytest.mark.parametrize("k, grows_standing", [(2.0, True), (0.5, False), (1.1, False)])
+def test_a_fast_mover_whose_image_grows_as_the_road_there_needs_its_probability(
+        default_config: Config, k: float, grows_standing: bool) -> None:
+    """A patch of road 6.5 m ahead that the tracker drags along in front of a car at 14 m/s: its
+    3-D state moves at 11 m/s, closing at 3 m/s (the path implies a growth of 0.46/s), but its
+    image grows at 2.0/s, as anything standing there does (2.1/s): it is no fast mover, and its
+    eq. 20 probability of 0.3 keeps it from a level. A lead car braking ahead, growing as its
+    path implies (0.5/s), or nearer that than standing (1.1/s), is a fast mover and warns."""
+    cfg = default_config
+    th = assessed(cfg, 6.5, (11.0, 0.0), k, probability=0.3, speed=14.0, along_std=0.7)
+    assert th.grows_standing == grows_standing
+    assert th.speed_m_s is not None and th.speed_m_s >= FAST_MOVER_M_S
+    assert th.on_course and th.ttc is not None and th.ttc < cfg.warning.ttc_warning_s
+    levels, events = run(cfg.warning, [(th,)] * 10)
+    if grows_standing:
+        assert events == [] and indication(th, 3.0, cfg.warning) == "probability 0.30 below 0.50"
+    else:
+        assert [e.level for e in events] == [2]

@@ -72,7 +72,10 @@ class TrackThreat:
     rate of its image its predicted velocity implies (``threat.path_expansion``) and the one the
     scale cue measures once trusted, where the ground contact is far (one image row spans
     ``FAR_CONTACT_M_PER_PX`` or more of depth: its rows cannot measure the speed along the line
-    of sight, which the 3-D state then takes from its prior, standing), else None."""
+    of sight, which the 3-D state then takes from its prior, standing), else None;
+    grows_standing: its image, where the scale cue is trusted, grows nearer as an object standing
+    where it is would than as its predicted path implies (a patch of road the tracker drags
+    along ahead of the car, its 3-D state moving with the car)."""
 
     report: TrackReport
     on_course: bool
@@ -91,6 +94,7 @@ class TrackThreat:
     stopped: bool = False
     suspected: bool = False
     growth: tuple[float, float, float] | None = None
+    grows_standing: bool = False
 
     @property
     def ttc(self) -> float | None:
@@ -116,6 +120,7 @@ def assess(track: ImageTrack, cues: TrackCues, f: FrameContext, cfg: WarningConf
     miss_ahead = False
     ground_est: tuple[float, float] | None = None
     growth: tuple[float, float, float] | None = None
+    grows_standing = False
     on_course = on_wide = False
     depth: float | None = None
     g = cues.ground
@@ -143,12 +148,17 @@ def assess(track: ImageTrack, cues: TrackCues, f: FrameContext, cfg: WarningConf
         miss_ahead = not on_course and base.ahead
         ttc_g = base.ttc if base.ttc is not None else wide.ttc
         axis = road_axis(f.pose)
-        implied = None if axis is None else path_expansion(
-            float(ground_in_camera(f.pose, pos)[2]), axis, vel, speed)
-        far = contact_depth_per_px(rng, camera.fy, f.pose.position[2]) >= FAR_CONTACT_M_PER_PX
-        if far and implied is not None and scale_state is not None and scale_state.trusted \
-                and not coasted:
-            growth = (implied, scale_state.scale.k, float(np.sqrt(scale_state.scale.var)))
+        z_cam = float(ground_in_camera(f.pose, pos)[2])
+        implied = None if axis is None else path_expansion(z_cam, axis, vel, speed)
+        trusted = scale_state is not None and scale_state.trusted and not coasted
+        if implied is not None and trusted:
+            k = scale_state.scale.k
+            standing_k = path_expansion(z_cam, axis, np.zeros(2), speed)
+            grows_standing = standing_k is not None and abs(k - standing_k) < abs(k - implied)
+            far = contact_depth_per_px(rng, camera.fy, f.pose.position[2]) \
+                >= FAR_CONTACT_M_PER_PX
+            if far:
+                growth = (implied, k, float(np.sqrt(scale_state.scale.var)))
         if ttc_g is not None:
             ground_est = (ttc_g, ground_ttc_std(pos, g.P, ttc_g, speed, vel))
     if g is not None and not ego_known:
@@ -200,4 +210,5 @@ def assess(track: ImageTrack, cues: TrackCues, f: FrameContext, cfg: WarningConf
         g.velocity, g.measured_covariance, VELOCITY_SIGNIFICANCE)
     return TrackThreat(report=report, on_course=on_course, on_course_wide=on_wide, miss_m=miss,
                        miss_ahead=miss_ahead, moving=moving, speed_m_s=least, height_m=height,
-                       coasted=coasted, ego_known=ego_known, growth=growth)
+                       coasted=coasted, ego_known=ego_known, growth=growth,
+                       grows_standing=grows_standing)

@@ -20,7 +20,8 @@ predicted path meets the ego corridor and with what TTC. From that:
   along with the traffic is predicted standing, closing at the ego speed, and its image does
   not grow. A track moving over ground at ``FAST_MOVER_M_S`` or more (a car, a cyclist;
   the speed it moves at least, 2 std below its estimate) needs no ``min_probability``: a
-  lead car at the epipole shows little independent flow.
+  lead car at the epipole shows little independent flow; unless its image grows nearer as
+  something standing there would than as its path implies (``TrackThreat.grows_standing``).
   A hidden track, assessed from its coasted 3-D state, needs ``HIDDEN_MIN_PROBABILITY``
   (its highest while seen) and raises at most ``hidden.max_level``. An obstacle that only
   may stand in the path (its evidence short of ``obstacle.evidence_threshold``, standing.py)
@@ -118,7 +119,8 @@ def indication(th: TrackThreat, threshold: float, cfg: WarningConfig) -> str | N
         return f"box {th.height_m:.2f} m tall, below {cfg.min_height_m:.2f} m"
     p = th.report.probability if th.evidence is None else th.evidence
     p_min = HIDDEN_MIN_PROBABILITY if th.coasted else cfg.min_probability
-    fast = th.ego_known and th.speed_m_s is not None and th.speed_m_s >= FAST_MOVER_M_S
+    fast = th.ego_known and th.speed_m_s is not None and th.speed_m_s >= FAST_MOVER_M_S \
+        and not th.grows_standing
     if p < p_min and not fast and not th.standing:
         return f"probability {p:.2f} below {p_min:.2f}"
     if not th.on_course:

@@ -25,9 +25,9 @@ from appliance.decision.ground_state import ground_in_camera, road_axis
 from appliance.decision.threat import (
     bumper_ttc,
     constant_bearing_course,
+    contact_depth_per_px,
     fuse,
     ground_ttc_std,
-    contact_depth_per_px,
     near_side_gap,
     object_radius,
     path_expansion,
@@ -148,17 +148,17 @@ def assess(track: ImageTrack, cues: TrackCues, f: FrameContext, cfg: WarningConf
         miss_ahead = not on_course and base.ahead
         ttc_g = base.ttc if base.ttc is not None else wide.ttc
         axis = road_axis(f.pose)
-        z_cam = float(ground_in_camera(f.pose, pos)[2])
-        implied = None if axis is None else path_expansion(z_cam, axis, vel, speed)
-        trusted = scale_state is not None and scale_state.trusted and not coasted
-        if implied is not None and trusted:
-            k = scale_state.scale.k
+        if scale_state is not None and scale_state.trusted and not coasted and axis is not None:
+            # what its image's growth says of its path: k = c / Z, moving and standing
+            z_cam = float(ground_in_camera(f.pose, pos)[2])
+            implied = path_expansion(z_cam, axis, vel, speed)
             standing_k = path_expansion(z_cam, axis, np.zeros(2), speed)
-            grows_standing = standing_k is not None and abs(k - standing_k) < abs(k - implied)
-            far = contact_depth_per_px(rng, camera.fy, f.pose.position[2]) \
-                >= FAR_CONTACT_M_PER_PX
-            if far:
-                growth = (implied, k, float(np.sqrt(scale_state.scale.var)))
+            k = scale_state.scale.k
+            if implied is not None and standing_k is not None:
+                grows_standing = abs(k - standing_k) < abs(k - implied)
+                if contact_depth_per_px(rng, camera.fy, f.pose.position[2]) \
+                        >= FAR_CONTACT_M_PER_PX:
+                    growth = (implied, k, float(np.sqrt(scale_state.scale.var)))
         if ttc_g is not None:
             ground_est = (ttc_g, ground_ttc_std(pos, g.P, ttc_g, speed, vel))
     if g is not None and not ego_known:

@@ -13,15 +13,15 @@ predicted path meets the ego corridor and with what TTC. From that:
   motion (eq. 20, smoothed) of at least ``min_probability``: false detections on
   road texture are weak and patchy, real movers are not; and, with a ground contact,
   only for a box at least ``min_height_m`` tall at that depth (a road user, not a strip
-  of road); and, where its ground contact is too far to measure its speed along the line of
-  sight (``assess.FAR_CONTACT_M_PER_PX``), only while its image grows as its predicted path
-  implies (the scale cue's expansion rate, once trusted, ``GROWTH_SIGMAS`` std above it, at
-  least ``GROWTH_SHARE`` of the closing speed over depth): a car 50 m ahead that keeps its bearing as it drives
-  along with the traffic is predicted standing, closing at the ego speed, and its image does
-  not grow. A track moving over ground at ``FAST_MOVER_M_S`` or more (a car, a cyclist;
-  the speed it moves at least, 2 std below its estimate) needs no ``min_probability``: a
-  lead car at the epipole shows little independent flow; unless its image grows nearer as
-  something standing there would than as its path implies (``TrackThreat.grows_standing``).
+  of road); and, where its ground contact is too far to measure its speed along the line of sight
+  (``assess.FAR_CONTACT_M_PER_PX``), only while its image grows as its predicted path implies (the
+  scale cue's expansion rate, once trusted, ``GROWTH_SIGMAS`` std above it, at least
+  ``GROWTH_SHARE`` of the closing speed over depth): a car 50 m ahead that keeps its bearing as it
+  drives along with the traffic is predicted standing, closing at the ego speed, and its image does
+  not grow. A track moving over ground at ``FAST_MOVER_M_S`` or more (a car, a cyclist; the speed it
+  moves at least, 2 std below its estimate) needs no ``min_probability``: a lead car at the epipole
+  shows little independent flow; unless its image grows nearer as something standing there would
+  than as its path implies (``TrackThreat.grows_standing``).
   A hidden track, assessed from its coasted 3-D state, needs ``HIDDEN_MIN_PROBABILITY``
   (its highest while seen) and raises at most ``hidden.max_level``. An obstacle that only
   may stand in the path (its evidence short of ``obstacle.evidence_threshold``, standing.py)

@@ -260,8 +260,8 @@ def motion_cues(x_prev: NDArray[np.floating], x_cur: NDArray[np.floating], motio
     else:
         d_e = np.full(len(p), np.inf)
     s_across, s_along = flow_std(flow_cov, static_dir, cfg)
-    if length_cov is not None:
-        _, s_along = flow_std(length_cov, static_dir, cfg)
+    if length_cov is not None:   # the flow-length cue's own std along the static flow
+        s_along = flow_std(length_cov, static_dir, cfg)[1]
     direction = direction_cue(flow_t, static_dir, d_e, cfg, s_across)
     f_s = road_static_flow(x_cur, motion, road, foot)
     magnitude = magnitude_cue_from_static(flow_t, f_s, cfg, s_along)

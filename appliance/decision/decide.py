@@ -39,7 +39,13 @@ from appliance.decision.frame import (
     speed_slope,
 )
 from appliance.decision.ground_state import camera_pose, update_body_pitch
-from appliance.decision.handover import STOPPING_M_S, continued, mover_height, one_threat
+from appliance.decision.handover import (
+    STOPPING_M_S,
+    continued,
+    mover_height,
+    obstacle_position,
+    one_threat,
+)
 from appliance.decision.hidden import hidden_probes, hidden_threats
 from appliance.decision.lost_tracks import coast_lost, moved_within, reacquire
 from appliance.decision.occlusion import CoastProbe
@@ -184,8 +190,12 @@ def decide(state: DecisionState, obs: Observation, flows: Mapping[ProbeKey, Poin
             standing = replace(standing, obstacle=ob)
             next_id = obs.tracker.next_id
     if ob is not None:
-        # its track, if it was lost, is continued by the obstacle
-        lost = tuple(lt for lt in lost if lt.id != ob.id)
+        # its track, if it was lost, is continued by the obstacle: no longer coasted, it stands
+        # where the obstacle does, for an obstacle found there again to continue it
+        curvature = f.yaw_rate / f.speed if f.speed > 0.1 else 0.0
+        lost = tuple(replace(lt, standing_seen=f.t,
+                             halted=obstacle_position(ob, f.mount, curvature))
+                     if lt.id == ob.id else lt for lt in lost)
     lost, hidden = hidden_threats(lost, obs.probes, measured, f, cfg.hidden, cfg.warning)
     threats.extend(hidden)
     if ob is not None and ob.seen == f.t:

@@ -57,6 +57,8 @@ class LostTrack:
     off_course: bool = False         # latched once its head, seen on course, was no longer
     halted: FloatArray | None = None  # (2,) m, current vehicle frame: where it would stand had it
                                       #   stopped when lost (its last position, moved with the ego)
+    standing_seen: float | None = None  # s, when an obstacle standing where it stopped (handover.py)
+                                        #   last continued it; it is then no longer coasted
 
     def covered(self) -> bool:
         """Whether something nearer hides it: the median of its last ``COVER_FRAMES``
@@ -139,7 +141,8 @@ def coast_lost(previous: TrackerState, previous_cues: dict[int, TrackCues],
         g = lt.cues.ground
         assert g is not None
         g = ground_predict(g, dt, sensors, coasting, steady=True)
-        if t - g.t_update <= cfg.keep_s:
+        last = g.t_update if lt.standing_seen is None else max(g.t_update, lt.standing_seen)
+        if t - last <= cfg.keep_s:
             out.append(replace(lt, cues=TrackCues(ground=g, states=lt.cues.states),
                                halted=halted_step(lt.halted, dt, sensors)))
     return tuple(out)
@@ -175,7 +178,7 @@ def coasted_track(lt: LostTrack, t: float, pose: CameraPose, x_m: float, camera:
     the occluder is still predicted to walk on.
     """
     g, tr = lt.cues.ground, lt.track
-    if g is None or tr is None or t - g.t_update > warn_s:
+    if g is None or tr is None or t - g.t_update > warn_s or lt.standing_seen is not None:
         return None
     depth_now = float(g.x[0] - x_m)
     depth_state = lt.cues.get("depth")

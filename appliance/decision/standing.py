@@ -818,5 +818,5 @@ def obstacle_threat(ob: Obstacle, f: FrameContext, cfg: WarningConfig,
                        miss_m=None if base.ttc is not None else base.closest,
                        miss_ahead=base.ttc is None and base.ahead, moving=False,
                        speed_m_s=0.0, standing=True, roadside=ob.at_roadside, closing=ob.closing,
-                       stopped=ob.stopped, suspected=not ob.confirmed,
+                       stopped=ob.stopped, suspected=not ob.confirmed and not ob.stopped,
                        ego_known=f.ego_known)

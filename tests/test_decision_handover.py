@@ -8,12 +8,15 @@ import numpy as np
 import pytest
 from test_decision_standing import STATIC, frame
 
-from appliance.config import Config
+from appliance.config import Config, HiddenConfig
 from appliance.decision.assess import TrackThreat
+from appliance.decision.cues import TrackCues
+from appliance.decision.ground_state import GroundModel, GroundTrack
 from appliance.decision.handover import continued, obstacle_position, one_threat
-from appliance.decision.lost_tracks import halted_step
+from appliance.decision.lost_tracks import LostTrack, coast_lost, coasted_track, halted_step
 from appliance.decision.standing import Obstacle, obstacle_threat
-from appliance.decision.warnings import indication
+from appliance.decision.tracking import TrackerState
+from appliance.decision.warnings import WarningState, indication, warning_step
 from appliance.messages import SensorSample, TrackReport
 
 
@@ -95,3 +98,49 @@ def test_the_obstacle_box_reaches_the_stopped_movers_height(default_config: Conf
     tall = obstacle_threat(dataclasses.replace(ob, top_m=1.8), frame(cfg), cfg.warning,
                            16.0).report.bbox
     assert tall[3] == pytest.approx(low[3]) and tall[1] < low[1] - 20.0
+
+
+def test_a_stopped_mover_warns_from_what_only_may_stand_there(default_config: Config) -> None:
+    """Short of the evidence threshold something only may stand in the path: a caution at
+    most. A mover seen to stop there is known to be an object: its obstacle warns."""
+    cfg = default_config
+    weak = Obstacle(id=7, depth_m=12.0, lateral_m=(-0.4, 0.4), evidence=9.0, since=0.0,
+                    seen=0.0, history=STATIC, confirmed=False, confirmed_at=None)
+    levels = {}
+    for stopped in (False, True):
+        th = obstacle_threat(dataclasses.replace(weak, stopped=stopped), frame(cfg),
+                             cfg.warning, cfg.obstacle.evidence_threshold)
+        assert th.ttc is not None and th.ttc < cfg.warning.ttc_warning_s
+        state = WarningState()
+        for k in range(6):
+            state, _, _, _ = warning_step(state, (th,), k * 0.1, k, cfg.warning, frame_dt=0.1)
+        levels[stopped] = state.level
+    assert levels == {False: 1, True: 2}
+
+
+def lost(standing_seen: float | None) -> LostTrack:
+    ground = GroundTrack(x=np.array([20.0, 0.0, -1.4, 0.0]), P=np.eye(4) * 0.25, t_update=0.0,
+                         updates=10)
+    return LostTrack(id=7, cues=TrackCues(ground=ground), halted=np.array([20.0, 0.0]),
+                     standing_seen=standing_seen)
+
+
+def test_a_stopped_mover_continued_by_its_obstacle_is_kept_where_it_stands() -> None:
+    """A lost track continued by an obstacle is no longer coasted: it is kept, standing where
+    the obstacle stood, for ``keep_s`` after the obstacle was last seen, so that an obstacle
+    found there again after a gap continues it under its id."""
+    cfg = HiddenConfig(keep_s=2.0, warn_s=1.5, max_level=2)
+    sensors = SensorSample(t=0.0, speed_m_s=10.0, yaw_rate_rad_s=0.0)
+    none = TrackerState()
+
+    def coast(lt: LostTrack, t: float) -> tuple[LostTrack, ...]:
+        return coast_lost(none, {}, (lt,), none, t, 0.1, sensors, GroundModel(), cfg)
+
+    # 2.5 s after its last ground contact: a coasting track is forgotten ...
+    assert coast(lost(None), 2.5) == ()
+    # ... one whose obstacle was seen 1 s before is kept, the car 1 m nearer to where it stands
+    kept = coast(lost(1.5), 2.5)
+    assert len(kept) == 1 and kept[0].halted == pytest.approx([19.0, 0.0])
+    assert coast(lost(0.4), 2.5) == ()
+    # and it is not assessed from its coasted state
+    assert coasted_track(kept[0], 2.5, None, 1.9, None, 10.0) is None  # type: ignore[arg-type]

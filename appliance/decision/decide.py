@@ -46,6 +46,7 @@ from appliance.decision.handover import (
     obstacle_position,
     one_threat,
 )
+from appliance.decision.halted import halted_probes, halted_threats
 from appliance.decision.hidden import hidden_probes, hidden_threats
 from appliance.decision.lost_tracks import coast_lost, moved_within, reacquire
 from appliance.decision.occlusion import CoastProbe
@@ -119,6 +120,7 @@ def observe(state: DecisionState, frame_index: int, t: float, particles: Particl
             asked[("cue", tr.uid, name)] = p
     asked.update(hidden_probes(lost, frame, cfg.hidden))
     before = state.standing if state.standing is not None else init_standing(cfg.obstacle)
+    asked.update(halted_probes(lost, frame, before.motions))
     corridor = corridor_probe(pose, camera, ego, sensors, dt, cfg.mount,
                               cfg.warning.corridor_margin_m, particles.window_px,
                               before.motions, cfg.obstacle)
@@ -196,8 +198,11 @@ def decide(state: DecisionState, obs: Observation, flows: Mapping[ProbeKey, Poin
         lost = tuple(replace(lt, standing_seen=f.t,
                              halted=obstacle_position(ob, f.mount, curvature))
                      if lt.id == ob.id else lt for lt in lost)
+    lost, halted = halted_threats(lost, obs.probes, measured, f, cfg.warning,
+                                  cfg.obstacle.evidence_threshold,
+                                  ob.id if ob is not None else None)
     lost, hidden = hidden_threats(lost, obs.probes, measured, f, cfg.hidden, cfg.warning)
-    threats.extend(hidden)
+    threats.extend(halted + hidden)
     if ob is not None and ob.seen == f.t:
         threats.append(obstacle_threat(ob, f, cfg.warning, cfg.obstacle.evidence_threshold))
         threats = one_threat(threats, ob.id)

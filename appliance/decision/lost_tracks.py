@@ -57,8 +57,10 @@ class LostTrack:
     off_course: bool = False         # latched once its head, seen on course, was no longer
     halted: FloatArray | None = None  # (2,) m, current vehicle frame: where it would stand had it
                                       #   stopped when lost (its last position, moved with the ego)
-    standing_seen: float | None = None  # s, when an obstacle standing where it stopped (handover.py)
-                                        #   last continued it; it is then no longer coasted
+    standing_seen: float | None = None  # s, when it was last seen standing where it stopped
+                                        #   (halted.py), or an obstacle there continued it
+                                        #   (handover.py); it is then no longer coasted
+    halt: tuple[float, ...] = ()        # its last halt counts (halted.halt_count; NaN: not measured)
 
     def covered(self) -> bool:
         """Whether something nearer hides it: the median of its last ``COVER_FRAMES``
@@ -66,6 +68,14 @@ class LostTrack:
         last = np.asarray(self.cover[-COVER_FRAMES:], dtype=np.float64)
         last = last[np.isfinite(last)]
         return bool(last.size) and float(np.median(last)) >= COVER_RATIO
+
+    def stands(self) -> bool:
+        """Whether it is seen standing where it stopped: the median of its last
+        ``halted.HALT_FRAMES`` halt counts, all measured, reaches ``halted.HALT_POINTS``."""
+        from appliance.decision.halted import HALT_FRAMES, HALT_POINTS
+        last = np.asarray(self.halt[-HALT_FRAMES:], dtype=np.float64)
+        return last.size == HALT_FRAMES and bool(np.all(np.isfinite(last))) \
+            and float(np.median(last)) >= HALT_POINTS
 
     def with_course(self, count: float) -> LostTrack:
         """This lost track with one more head-band count (``occlusion.course_count``).

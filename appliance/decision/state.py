@@ -11,6 +11,7 @@ from appliance.decision.clustering import Cluster
 from appliance.decision.cues import Probe, TrackCues
 from appliance.decision.frame import FrameContext
 from appliance.decision.ground_state import CameraPose
+from appliance.decision.halted import HaltProbe
 from appliance.decision.lost_tracks import LostTrack
 from appliance.decision.occlusion import CoastProbe
 from appliance.decision.standing import CorridorProbe, StandingState
@@ -55,19 +56,20 @@ class Observation:
     clusters: tuple[Cluster, ...]
     tracker: TrackerState
     lost: tuple[LostTrack, ...]
-    probes: dict[ProbeKey, Probe | CoastProbe | CorridorProbe]
+    probes: dict[ProbeKey, Probe | CoastProbe | CorridorProbe | HaltProbe]
 
     def requests(self) -> dict[ProbeKey, FloatArray]:
         """The pixels (M, 2) of the current frame whose flow since the previous frame each
         probe needs."""
-        return {k: p.points for k, p in self.probes.items() if not isinstance(p, CorridorProbe)}
+        return {k: p.points for k, p in self.probes.items()
+                if not isinstance(p, (CorridorProbe, HaltProbe))}
 
     def spanning_requests(self) -> dict[ProbeKey, tuple[FloatArray, FloatArray, int]]:
         """The probes measured over several frames: their pixels (M, 2) of the current frame,
         where each search starts (M, 2) in the frame ``frames_back`` frames ago, and that
         number."""
         return {k: (p.points, p.guess, p.frames_back) for k, p in self.probes.items()
-                if isinstance(p, CorridorProbe)}
+                if isinstance(p, (CorridorProbe, HaltProbe))}
 
 
 @dataclass(frozen=True)

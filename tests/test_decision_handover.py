@@ -118,11 +118,11 @@ def test_a_stopped_mover_warns_from_what_only_may_stand_there(default_config: Co
     assert levels == {False: 1, True: 2}
 
 
-def lost(standing_seen: float | None) -> LostTrack:
+def lost(standing_seen: float | None, continued: bool = True) -> LostTrack:
     ground = GroundTrack(x=np.array([20.0, 0.0, -1.4, 0.0]), P=np.eye(4) * 0.25, t_update=0.0,
                          updates=10)
     return LostTrack(id=7, cues=TrackCues(ground=ground), halted=np.array([20.0, 0.0]),
-                     standing_seen=standing_seen)
+                     standing_seen=standing_seen, continued=continued)
 
 
 def test_a_stopped_mover_continued_by_its_obstacle_is_kept_where_it_stands() -> None:
@@ -137,7 +137,7 @@ def test_a_stopped_mover_continued_by_its_obstacle_is_kept_where_it_stands() -> 
         return coast_lost(none, {}, (lt,), none, t, 0.1, sensors, GroundModel(), cfg)
 
     # 2.5 s after its last ground contact: a coasting track is forgotten ...
-    assert coast(lost(None), 2.5) == ()
+    assert coast(lost(None, False), 2.5) == ()
     # ... one whose obstacle was seen 1 s before is kept, the car 1 m nearer to where it stands
     kept = coast(lost(1.5), 2.5)
     assert len(kept) == 1 and kept[0].halted == pytest.approx([19.0, 0.0])

@@ -195,14 +195,16 @@ def decide(state: DecisionState, obs: Observation, flows: Mapping[ProbeKey, Poin
         # its track, if it was lost, is continued by the obstacle: no longer coasted, it stands
         # where the obstacle does, for an obstacle found there again to continue it
         curvature = f.yaw_rate / f.speed if f.speed > 0.1 else 0.0
-        lost = tuple(replace(lt, standing_seen=f.t,
+        lost = tuple(replace(lt, standing_seen=f.t, continued=True,
                              halted=obstacle_position(ob, f.mount, curvature))
                      if lt.id == ob.id else lt for lt in lost)
-    lost, halted = halted_threats(lost, obs.probes, measured, f, cfg.warning,
-                                  cfg.obstacle.evidence_threshold,
-                                  ob.id if ob is not None else None)
     lost, hidden = hidden_threats(lost, obs.probes, measured, f, cfg.hidden, cfg.warning)
-    threats.extend(halted + hidden)
+    # seen standing where it stopped, unless the parallax cue's obstacle continues it or it is
+    # assessed hidden (what stands there may be the occluder)
+    assessed = {th.report.id for th in hidden} | ({ob.id} if ob is not None else set())
+    lost, halted = halted_threats(lost, obs.probes, measured, f, cfg.warning,
+                                  cfg.obstacle.evidence_threshold, assessed)
+    threats.extend(hidden + halted)
     if ob is not None and ob.seen == f.t:
         threats.append(obstacle_threat(ob, f, cfg.warning, cfg.obstacle.evidence_threshold))
         threats = one_threat(threats, ob.id)

@@ -18,7 +18,7 @@ within ``STANDS_RATIO``; the road seen there is farther, its ratio ``ROAD_RATIO`
 background above the horizon farther still). Where the median of the last ``HALT_FRAMES``
 counts reaches ``HALT_POINTS``, something stands where the mover stopped
 (:meth:`LostTrack.stands`): it is assessed as an obstacle standing there (:func:`halted_threat`),
-under the mover's id, as the parallax cue's obstacle is once it continues the mover
+under the mover's id (unless it is assessed as hidden: what stands there may be the occluder), as the parallax cue's obstacle is once it continues the mover
 (handover.py); it is no longer coasted, and is kept while it is seen standing. A mover that
 walked on leaves the road and the background in that box; what else stands there at that
 depth (a parked car beside a pedestrian who walked on along the kerb) stands there too, and is
@@ -174,10 +174,12 @@ def halted_probes(lost: tuple[LostTrack, ...], f: FrameContext,
 
 def halted_threats(lost: tuple[LostTrack, ...], probes: Mapping[tuple[str, int, str], object],
                    flows: Mapping[tuple[str, int, str], PointFlow], f: FrameContext,
-                   cfg: WarningConfig, evidence_threshold: float, obstacle_id: int | None
+                   cfg: WarningConfig, evidence_threshold: float,
+                   assessed: set[int] | frozenset[int] = frozenset()
                    ) -> tuple[tuple[LostTrack, ...], list[TrackThreat]]:
     """The lost tracks after this frame's halt counts, and the threats of those seen standing
-    where they stopped, but for the one the parallax cue's obstacle (``obstacle_id``) continues."""
+    where they stopped, but for those whose ids are ``assessed`` otherwise this frame (the
+    parallax cue's obstacle continuing one, a hidden one assessed from its coasted state)."""
     out: list[LostTrack] = []
     threats: list[TrackThreat] = []
     for lt in lost:
@@ -187,7 +189,7 @@ def halted_threats(lost: tuple[LostTrack, ...], probes: Mapping[tuple[str, int, 
         lt = replace(lt, halt=(*lt.halt[1 - HALT_FRAMES:], count))
         if lt.stands():
             lt = replace(lt, standing_seen=f.t)
-            th = halted_threat(lt, f, cfg, evidence_threshold) if lt.id != obstacle_id else None
+            th = halted_threat(lt, f, cfg, evidence_threshold) if lt.id not in assessed else None
             if th is not None:
                 threats.append(th)
         out.append(lt)

@@ -59,7 +59,8 @@ class LostTrack:
                                       #   stopped when lost (its last position, moved with the ego)
     standing_seen: float | None = None  # s, when it was last seen standing where it stopped
                                         #   (halted.py), or an obstacle there continued it
-                                        #   (handover.py); it is then no longer coasted
+    continued: bool = False             # an obstacle standing there continued it (handover.py):
+                                        #   it is no longer coasted
     halt: tuple[float, ...] = ()        # its last halt counts (halted.halt_count; NaN: not measured)
 
     def covered(self) -> bool:
@@ -188,7 +189,7 @@ def coasted_track(lt: LostTrack, t: float, pose: CameraPose, x_m: float, camera:
     the occluder is still predicted to walk on.
     """
     g, tr = lt.cues.ground, lt.track
-    if g is None or tr is None or t - g.t_update > warn_s or lt.standing_seen is not None:
+    if g is None or tr is None or t - g.t_update > warn_s or lt.continued:
         return None
     depth_now = float(g.x[0] - x_m)
     depth_state = lt.cues.get("depth")

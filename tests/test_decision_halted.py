@@ -149,3 +149,16 @@ def test_a_mover_stopped_beside_the_path_is_no_threat_in_it(default_config: Conf
                            cfg.obstacle.evidence_threshold)
     assert beside is not None and not beside.on_course
     assert indication(beside, 2.0, cfg.warning).startswith("path misses corridor")
+
+
+def test_static_scenery_the_tracker_followed_for_a_while_is_no_mover_that_stopped(
+        default_config: Config) -> None:
+    """A track that never showed the probability a level needs (a ghost on the outside of a
+    bend, dropped where the roadside stands in the path) raises no threat standing there."""
+    cfg = default_config
+    ghost = lost(cfg, 12.0)
+    ghost = replace(ghost, cues=ghost.cues.replaced(peaks=PeakState(probability=0.35,
+                                                                    height_peak_m=1.7)))
+    assert halted_threat(ghost, frame(cfg), cfg.warning, cfg.obstacle.evidence_threshold) is None
+    assert halted_threat(lost(cfg, 12.0), frame(cfg), cfg.warning,
+                         cfg.obstacle.evidence_threshold) is not None

@@ -199,9 +199,14 @@ def decide(state: DecisionState, obs: Observation, flows: Mapping[ProbeKey, Poin
                              halted=obstacle_position(ob, f.mount, curvature))
                      if lt.id == ob.id else lt for lt in lost)
     lost, hidden = hidden_threats(lost, obs.probes, measured, f, cfg.hidden, cfg.warning)
-    # seen standing where it stopped, unless the parallax cue's obstacle continues it or it is
-    # assessed hidden (what stands there may be the occluder)
-    assessed = {th.report.id for th in hidden} | ({ob.id} if ob is not None else set())
+    # seen standing where it stopped, unless assessed otherwise: hidden (what stands there may
+    # be the occluder), or where the parallax cue's obstacle stands (it continues the mover, or
+    # describes what stands there: the roadside, at the outside of a bend)
+    assessed = {th.report.id for th in hidden}
+    if ob is not None:
+        curvature = f.yaw_rate / f.speed if f.speed > 0.1 else 0.0
+        assessed |= {lt.id for lt in lost if lt.id == ob.id or lt.halted is not None
+                     and continued(ob, f.mount, curvature, [(lt.id, lt.halted)]) == lt.id}
     lost, halted = halted_threats(lost, obs.probes, measured, f, cfg.warning,
                                   cfg.obstacle.evidence_threshold, assessed)
     threats.extend(hidden + halted)

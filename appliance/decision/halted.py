@@ -143,8 +143,12 @@ def halted_threat(lt: LostTrack, f: FrameContext, cfg: WarningConfig,
                   evidence_threshold: float) -> TrackThreat | None:
     """The threat of a lost mover seen standing where it stopped: an obstacle under its id at
     its halted position, as wide as its track was (at least ``MIN_WIDTH_M``), as tall as it
-    was seen; its evidence the threshold's (it is known to be an object)."""
-    if lt.halted is None:
+    was seen; its evidence the threshold's (it is known to be an object). None for a track
+    that never showed the probability of independent motion a level needs
+    (``warning.min_probability``, its highest while seen): a patch of static scenery the
+    tracker followed for a while, not a mover."""
+    peaks = lt.cues.get("peaks")
+    if lt.halted is None or peaks is None or peaks.probability < cfg.min_probability:
         return None
     placed = halted_box(lt, f.pose, f.mount.x_m, f.camera)
     if placed is None:

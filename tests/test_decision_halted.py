@@ -14,15 +14,13 @@ from appliance.decision.cues.depth import DepthState
 from appliance.decision.cues.peaks import PeakState
 from appliance.decision.ground_state import ground_in_camera
 from appliance.decision.halted import (
-    HALT_FRAMES,
-    HALT_POINTS,
     HaltProbe,
     halt_count,
     halt_probe,
     halted_threat,
     halted_threats,
 )
-from appliance.decision.lost_tracks import LostTrack
+from appliance.decision.lost_tracks import HALT_FRAMES, HALT_POINTS, LostTrack
 from appliance.decision.tracking import ImageTrack
 from appliance.decision.warnings import indication
 from appliance.vision.probes import PointFlow

@@ -18,12 +18,12 @@ within ``STANDS_RATIO``; the road seen there is farther, its ratio ``ROAD_RATIO`
 background above the horizon farther still). Where the median of the last ``HALT_FRAMES``
 counts reaches ``HALT_POINTS``, something stands where the mover stopped
 (:meth:`LostTrack.stands`): it is assessed as an obstacle standing there (:func:`halted_threat`),
-under the mover's id (unless it is assessed as hidden: what stands there may be the occluder), as the parallax cue's obstacle is once it continues the mover
-(handover.py); it is no longer coasted, and is kept while it is seen standing. A mover that
-walked on leaves the road and the background in that box; what else stands there at that
-depth (a parked car beside a pedestrian who walked on along the kerb) stands there too, and is
-judged by its place like any obstacle: in the path or not.
-background in that box.
+under the mover's id, and kept while it is seen standing. A mover that walked on leaves the road
+and the background in that box; what else stands there at that depth (a parked car beside a
+pedestrian who walked on along the kerb) stands there too, and is judged by its place like any
+obstacle: in the path or not. Where the mover is assessed otherwise (hidden, what stands there
+may be the occluder; the parallax cue's obstacle at its place), that is its threat
+(``decide.decide``).
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ from appliance.decision.assess import TrackThreat
 from appliance.decision.frame import FrameContext, Motion, frame_motion
 from appliance.decision.ground_state import ground_in_camera
 from appliance.decision.handover import mover_height
-from appliance.decision.lost_tracks import LostTrack
+from appliance.decision.lost_tracks import HALT_FRAMES, LostTrack
 from appliance.decision.occlusion import flow_ratios
 from appliance.decision.standing import BASELINE_S, Obstacle, compose, obstacle_threat, path_y
 from appliance.vision.geometry import FloatArray, PinholeCamera, in_image
@@ -53,8 +53,6 @@ GRID_PX = 2.0                 # px between the probed points (an outline is seen
 GRID_MAX = (24, 40)           #   window holds it); points across and down at most
 STANDS_RATIO = (0.7, 1.6)     # a point at the object's depth: its flow ratio (the depth is known to
                               #   about 20 %)
-HALT_FRAMES = 3               # frames of the median count
-HALT_POINTS = 6.0             # the median count from which it stands there
 
 
 def halted_box(lt: LostTrack, pose: object, x_m: float, camera: PinholeCamera

@@ -6,7 +6,10 @@ removed) for ``hidden.keep_s``; a new track whose first ground contact falls in 
 gate continues it under its id (:func:`reacquire`). For ``hidden.warn_s`` it is
 also assessed from the coasted state (:func:`coasted_track`) while something nearer covers
 it (:meth:`LostTrack.covered`) and until its head, where it shows above the occluder, is seen
-off the coasted course (:meth:`LostTrack.with_course`; occlusion.py).
+off the coasted course (:meth:`LostTrack.with_course`; occlusion.py). It also keeps where it
+would stand had it stopped when lost (``halted``); seen standing there (halted.py), or
+continued there by an obstacle of the parallax cue (handover.py), it is kept for ``keep_s``
+after it was last seen so.
 """
 
 from __future__ import annotations
@@ -38,6 +41,8 @@ COURSE_POINTS = 3            # head seen on course: the median count of its band
 COURSE_FRACTION = 0.25       #   least this, and this share of its highest median so far
 COURSE_SEEN_POINTS = 8       # ... and it counts as seen there only from this median on (background
                              #   alone counts 3-6)
+HALT_FRAMES = 3              # seen standing where it stopped: the median of this many halt counts
+HALT_POINTS = 6.0            #   (halted.halt_count) reaches this
 
 
 @dataclass(frozen=True)
@@ -72,8 +77,7 @@ class LostTrack:
 
     def stands(self) -> bool:
         """Whether it is seen standing where it stopped: the median of its last
-        ``halted.HALT_FRAMES`` halt counts, all measured, reaches ``halted.HALT_POINTS``."""
-        from appliance.decision.halted import HALT_FRAMES, HALT_POINTS
+        ``HALT_FRAMES`` halt counts (halted.py), all measured, reaches ``HALT_POINTS``."""
         last = np.asarray(self.halt[-HALT_FRAMES:], dtype=np.float64)
         return last.size == HALT_FRAMES and bool(np.all(np.isfinite(last))) \
             and float(np.median(last)) >= HALT_POINTS

@@ -12,7 +12,7 @@ from appliance.config import Config
 from appliance.decision.cues import TrackCues
 from appliance.decision.cues.depth import DepthState
 from appliance.decision.cues.peaks import PeakState
-from appliance.decision.ground_state import ground_in_camera
+from appliance.decision.ground_state import GroundTrack, ground_in_camera
 from appliance.decision.halted import (
     HaltProbe,
     halt_count,
@@ -29,12 +29,16 @@ MOTION = (np.eye(3), np.array([0.0, 0.0, -SPEED * DT]))
 
 
 def lost(cfg: Config, ahead_m: float, lateral_m: float = 0.0) -> LostTrack:
-    """A pedestrian (0.5 m wide, 1.7 m tall) lost ``ahead_m`` ahead of the camera, halted there."""
+    """A pedestrian (0.5 m wide, 1.7 m tall) lost walking at 1.2 m/s ``ahead_m`` ahead of the
+    camera, halted there."""
     x = cfg.mount.x_m + ahead_m
     track = ImageTrack(uid=1, id=7, x=np.array([[320.0, 0.0, 0.0], [240.0, 0.0, 0.0]]),
                        P=np.tile(np.eye(3), (2, 1, 1)), size=(0.5 * CAM.fx / ahead_m, 40.0),
                        age=20, misses=0, cluster=None, probability=0.8)
-    cues = TrackCues(states={"peaks": PeakState(probability=0.8, height_peak_m=1.7),
+    ground = GroundTrack(x=np.array([x, lateral_m, -1.2, 0.0]), P=np.eye(4) * 0.25,
+                         t_update=0.0, updates=10)
+    cues = TrackCues(ground=ground,
+                     states={"peaks": PeakState(probability=0.8, height_peak_m=1.7),
                              "depth": DepthState(depth=ahead_m, t=0.0)})
     return LostTrack(id=7, cues=cues, track=track, halted=np.array([x, lateral_m]))
 
@@ -160,3 +164,16 @@ def test_static_scenery_the_tracker_followed_for_a_while_is_no_mover_that_stoppe
     assert halted_threat(ghost, frame(cfg), cfg.warning, cfg.obstacle.evidence_threshold) is None
     assert halted_threat(lost(cfg, 12.0), frame(cfg), cfg.warning,
                          cfg.obstacle.evidence_threshold) is not None
+
+
+def test_a_mover_lost_at_speed_is_not_looked_for_where_it_was_lost(
+        default_config: Config) -> None:
+    """A car crossing far ahead, lost at 7 m/s, runs on for metres: what stands where it was
+    lost (a parked car) is something else."""
+    cfg = default_config
+    walker = lost(cfg, 30.0, lateral_m=-2.5)
+    g = walker.cues.ground
+    car = replace(walker, cues=TrackCues(ground=replace(g, x=np.array([*g.x[:2], -7.0, 0.0])),
+                                         states=walker.cues.states))
+    assert halt_probe(walker, frame(cfg), (MOTION,) * 6) is not None
+    assert halt_probe(car, frame(cfg), (MOTION,) * 6) is None

@@ -6,7 +6,8 @@ stands. The parallax cue (standing.py) finds what stands in the path without kno
 look, and needs many points measured to reach its evidence: a pedestrian in plain clothes
 shows flow only at its outline and its head, and is found late or not at all. The lost track
 knows where to look: where it would stand had it stopped when it was lost
-(``LostTrack.halted``), at the height its track showed.
+(``LostTrack.halted``), at the height its track showed, if it was lost slow enough to stop
+there (``HALT_SPEED_M_S``).
 
 :func:`halt_probe` names a grid of pixels over the box such an object would fill there, from
 the row where the road seen above its feet lies 1 / ``ROAD_RATIO`` times farther than the object
@@ -47,6 +48,9 @@ from appliance.vision.probes import PointFlow
 ROAD_RATIO = 0.55             # the probed box's bottom: the row where the road seen lies 1 / this
                               #   times farther than the object (0.54 m above the road for a camera
                               #   1.2 m high, 0.74 m for one 1.65 m high), and 0.5 m at least
+HALT_SPEED_M_S = 4.0          # m/s over ground, the fastest a mover is lost at and may stand where it
+                              #   was (a walker stops within a step; a car or a cyclist at speed
+                              #   runs on for metres, and what stands there is something else)
 HALT_HEIGHT_M = 1.5           # m, the height probed where the mover's own was never measured
 MIN_WIDTH_M = 0.6             # m, the probed box is at least this wide (a lost box is often a remnant)
 GRID_PX = 2.0                 # px between the probed points (an outline is seen by the few whose
@@ -111,7 +115,11 @@ def halt_probe(lt: LostTrack, f: FrameContext, motions: tuple[Motion | None, ...
                ) -> HaltProbe | None:
     """The points of :func:`halt_count` for a lost track with a halted position, measured over
     the last ``standing.BASELINE_S`` (``motions``: the frame motions before this one, oldest
-    first); None when it cannot be measured (standstill, speed unknown, out of the image)."""
+    first); None when it was lost faster than ``HALT_SPEED_M_S`` or cannot be measured
+    (standstill, speed unknown, out of the image)."""
+    g = lt.cues.ground
+    if g is not None and g.speed > HALT_SPEED_M_S:
+        return None
     placed = halted_box(lt, f.pose, f.mount.x_m, f.camera)
     now = frame_motion(f.ego, f.sensors, f.dt)
     if placed is None or now is None:

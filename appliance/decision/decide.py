@@ -174,9 +174,9 @@ def decide(state: DecisionState, obs: Observation, flows: Mapping[ProbeKey, Poin
         frame_motion(f.ego, f.sensors, f.dt), f.camera, f.mount, cfg.warning.corridor_margin_m,
         obs.tracker.next_id, cfg.obstacle)
     ob = standing.obstacle
+    curvature = f.yaw_rate / f.speed if f.speed > 0.1 else 0.0
     if ob is not None and ob.since == f.t:
         # new: it continues the mover that came to a stop where it stands (handover.py)
-        curvature = f.yaw_rate / f.speed if f.speed > 0.1 else 0.0
         movers = [(lt.id, lt.halted) for lt in lost if lt.halted is not None]
         heights = {lt.id: mover_height(lt.cues) for lt in lost}
         for tr in tracks:
@@ -194,7 +194,6 @@ def decide(state: DecisionState, obs: Observation, flows: Mapping[ProbeKey, Poin
     if ob is not None:
         # its track, if it was lost, is continued by the obstacle: no longer coasted, it stands
         # where the obstacle does, for an obstacle found there again to continue it
-        curvature = f.yaw_rate / f.speed if f.speed > 0.1 else 0.0
         lost = tuple(replace(lt, standing_seen=f.t, continued=True,
                              halted=obstacle_position(ob, f.mount, curvature))
                      if lt.id == ob.id else lt for lt in lost)
@@ -204,7 +203,6 @@ def decide(state: DecisionState, obs: Observation, flows: Mapping[ProbeKey, Poin
     # describes what stands there: the roadside, at the outside of a bend)
     assessed = {th.report.id for th in hidden}
     if ob is not None:
-        curvature = f.yaw_rate / f.speed if f.speed > 0.1 else 0.0
         assessed |= {lt.id for lt in lost if lt.id == ob.id or lt.halted is not None
                      and continued(ob, f.mount, curvature, [(lt.id, lt.halted)]) == lt.id}
     lost, halted = halted_threats(lost, obs.probes, measured, f, cfg.warning,

@@ -37,7 +37,7 @@ import numpy as np
 from appliance.config import WarningConfig
 from appliance.decision.assess import TrackThreat
 from appliance.decision.frame import FrameContext, Motion, frame_motion
-from appliance.decision.ground_state import ground_in_camera
+from appliance.decision.ground_state import CameraPose, ground_in_camera
 from appliance.decision.handover import mover_height
 from appliance.decision.lost_tracks import HALT_FRAMES, LostTrack
 from appliance.decision.occlusion import flow_ratios
@@ -59,28 +59,33 @@ STANDS_RATIO = (0.7, 1.6)     # a point at the object's depth: its flow ratio (t
                               #   about 20 %)
 
 
-def halted_box(lt: LostTrack, pose: object, x_m: float, camera: PinholeCamera
-               ) -> tuple[tuple[float, float, float, float], float, FloatArray] | None:
+def halted_width_m(lt: LostTrack, camera: PinholeCamera) -> float:
+    """How wide (m) the lost mover's track was at its depth, ``MIN_WIDTH_M`` at least."""
+    depth_state = lt.cues.get("depth")
+    then = depth_state.depth if depth_state is not None else None
+    if lt.track is None or then is None or then <= 0.5:
+        return MIN_WIDTH_M
+    return max(MIN_WIDTH_M, lt.track.size[0] * then / camera.fx)
+
+
+def halted_box(lt: LostTrack, pose: CameraPose, camera: PinholeCamera
+               ) -> tuple[tuple[float, float, float, float], float] | None:
     """Where a lost mover that stopped would be in the image: the box (u0, v0, u1, v1) px of
     its probed part (from where the road seen above its feet lies 1 / ``ROAD_RATIO`` times
-    farther up to its height, at least ``MIN_WIDTH_M`` wide), its camera depth (m) and its ground position in the camera frame (3,); None
+    farther up to its height, :func:`halted_width_m` wide) and its camera depth (m); None
     without a halted position, or less than 0.5 m ahead."""
-    if lt.halted is None or lt.track is None:
+    if lt.halted is None:
         return None
-    foot = ground_in_camera(pose, lt.halted)  # type: ignore[arg-type]
+    foot = ground_in_camera(pose, lt.halted)
     depth = float(foot[2])
     if depth <= 0.5:
         return None
     height = mover_height(lt.cues) or HALT_HEIGHT_M
-    depth_state = lt.cues.get("depth")
-    then = depth_state.depth if depth_state is not None else None
-    width_m = MIN_WIDTH_M if then is None or then <= 0.5 \
-        else max(MIN_WIDTH_M, lt.track.size[0] * then / camera.fx)
     u, v = (float(c) for c in camera.project(foot[None])[0])
     px = camera.fy / depth
-    half = 0.5 * width_m * camera.fx / depth
-    bottom = max(0.5, (1.0 - ROAD_RATIO) * float(pose.position[2]))  # type: ignore[attr-defined]
-    return (u - half, v - height * px, u + half, v - bottom * px), depth, foot
+    half = 0.5 * halted_width_m(lt, camera) * camera.fx / depth
+    bottom = max(0.5, (1.0 - ROAD_RATIO) * float(pose.position[2]))
+    return (u - half, v - height * px, u + half, v - bottom * px), depth
 
 
 def grid(box: tuple[float, float, float, float], width: int, height: int) -> FloatArray:
@@ -120,11 +125,11 @@ def halt_probe(lt: LostTrack, f: FrameContext, motions: tuple[Motion | None, ...
     g = lt.cues.ground
     if g is not None and g.speed > HALT_SPEED_M_S:
         return None
-    placed = halted_box(lt, f.pose, f.mount.x_m, f.camera)
+    placed = halted_box(lt, f.pose, f.camera)
     now = frame_motion(f.ego, f.sensors, f.dt)
     if placed is None or now is None:
         return None
-    box, depth, _ = placed
+    box, depth = placed
     pts = grid(box, f.camera.width, f.camera.height)
     if len(pts) == 0:
         return None
@@ -154,13 +159,10 @@ def halted_threat(lt: LostTrack, f: FrameContext, cfg: WarningConfig,
     (``warning.min_probability``, its highest while seen): a patch of static scenery the
     tracker followed for a while, not a mover."""
     peaks = lt.cues.get("peaks")
-    if lt.halted is None or peaks is None or peaks.probability < cfg.min_probability:
+    if lt.halted is None or peaks is None or peaks.probability < cfg.min_probability \
+            or halted_box(lt, f.pose, f.camera) is None:
         return None
-    placed = halted_box(lt, f.pose, f.mount.x_m, f.camera)
-    if placed is None:
-        return None
-    box, depth, _ = placed
-    half = 0.5 * (box[2] - box[0]) * depth / f.camera.fx
+    half = 0.5 * halted_width_m(lt, f.camera)
     x, y = float(lt.halted[0]), float(lt.halted[1])
     curvature = f.yaw_rate / f.speed if f.speed > 0.1 else 0.0
     centre = y - float(path_y(np.array([x]), curvature)[0])

@@ -40,9 +40,9 @@ from appliance.decision.frame import FrameContext, Motion, frame_motion
 from appliance.decision.ground_state import CameraPose, ground_in_camera
 from appliance.decision.handover import mover_height
 from appliance.decision.lost_tracks import HALT_FRAMES, LostTrack
-from appliance.decision.occlusion import flow_ratios
+from appliance.decision.occlusion import band_points, flow_ratios
 from appliance.decision.standing import BASELINE_S, Obstacle, compose, obstacle_threat, path_y
-from appliance.vision.geometry import FloatArray, PinholeCamera, in_image
+from appliance.vision.geometry import FloatArray, PinholeCamera
 from appliance.vision.probes import PointFlow
 
 ROAD_RATIO = 0.55             # the probed box's bottom: the row where the road seen lies 1 / this
@@ -88,18 +88,6 @@ def halted_box(lt: LostTrack, pose: CameraPose, camera: PinholeCamera
     return (u - half, v - height * px, u + half, v - bottom * px), depth
 
 
-def grid(box: tuple[float, float, float, float], width: int, height: int) -> FloatArray:
-    """A grid (M, 2) px over ``box`` every ``GRID_PX`` (at most ``GRID_MAX``), inside the image."""
-    u0, v0, u1, v1 = box
-    if not (u1 > u0 and v1 > v0):
-        return np.zeros((0, 2))
-    nu = int(np.clip((u1 - u0) / GRID_PX, 2, GRID_MAX[0]))
-    nv = int(np.clip((v1 - v0) / GRID_PX, 2, GRID_MAX[1]))
-    uu, vv = np.meshgrid(np.linspace(u0, u1, nu), np.linspace(v0, v1, nv))
-    pts = np.column_stack([uu.ravel(), vv.ravel()])
-    return pts[in_image(pts, width, height)]
-
-
 @dataclass(frozen=True)
 class HaltProbe:
     """Pixels (M, 2) of the current frame over where a lost mover would stand, measured over
@@ -130,7 +118,9 @@ def halt_probe(lt: LostTrack, f: FrameContext, motions: tuple[Motion | None, ...
     if placed is None or now is None:
         return None
     box, depth = placed
-    pts = grid(box, f.camera.width, f.camera.height)
+    if not (box[2] > box[0] and box[3] > box[1]):   # a mover no taller than the probed bottom
+        return None
+    pts = band_points(box, f.camera.width, f.camera.height, GRID_PX, GRID_MAX)
     if len(pts) == 0:
         return None
     frames = max(1, int(round(BASELINE_S / f.dt))) if f.dt > 0.0 else 1

@@ -159,11 +159,14 @@ def head_band(u: float, v_bottom: float, width_px: float, height_m: float, depth
     return (u - half, top - HEAD_BAND_M[1] * px_per_m, u + half, top + HEAD_BAND_M[0] * px_per_m)
 
 
-def band_points(box: tuple[float, float, float, float], width: int, height: int) -> FloatArray:
-    """A grid (M, 2) px over ``box`` every ``HEAD_GRID_PX`` (at most ``HEAD_GRID_MAX``), inside the image."""
+def band_points(box: tuple[float, float, float, float], width: int, height: int,
+                spacing_px: float = HEAD_GRID_PX,
+                most: tuple[int, int] = HEAD_GRID_MAX) -> FloatArray:
+    """A grid (M, 2) px over ``box`` every ``spacing_px`` (at most ``most`` points across and
+    down), inside the image."""
     u0, v0, u1, v1 = box
-    nu = int(np.clip((u1 - u0) / HEAD_GRID_PX, 2, HEAD_GRID_MAX[0]))
-    nv = int(np.clip((v1 - v0) / HEAD_GRID_PX, 2, HEAD_GRID_MAX[1]))
+    nu = int(np.clip((u1 - u0) / spacing_px, 2, most[0]))
+    nv = int(np.clip((v1 - v0) / spacing_px, 2, most[1]))
     uu, vv = np.meshgrid(np.linspace(u0, u1, nu), np.linspace(v0, v1, nv))
     pts = np.column_stack([uu.ravel(), vv.ravel()])
     return pts[in_image(pts, width, height)]

@@ -43,6 +43,9 @@ class DecisionState:
     standing: StandingState | None = None   # what stands in the path (standing.py)
 
 
+SPANNING = (CorridorProbe, HaltProbe)   # the probes measured over several frames
+
+
 @dataclass(frozen=True)
 class Observation:
     """What :func:`observe` found this frame, for :func:`decide`: the frame's context, p(x),
@@ -61,15 +64,14 @@ class Observation:
     def requests(self) -> dict[ProbeKey, FloatArray]:
         """The pixels (M, 2) of the current frame whose flow since the previous frame each
         probe needs."""
-        return {k: p.points for k, p in self.probes.items()
-                if not isinstance(p, (CorridorProbe, HaltProbe))}
+        return {k: p.points for k, p in self.probes.items() if not isinstance(p, SPANNING)}
 
     def spanning_requests(self) -> dict[ProbeKey, tuple[FloatArray, FloatArray, int]]:
         """The probes measured over several frames: their pixels (M, 2) of the current frame,
         where each search starts (M, 2) in the frame ``frames_back`` frames ago, and that
         number."""
         return {k: (p.points, p.guess, p.frames_back) for k, p in self.probes.items()
-                if isinstance(p, (CorridorProbe, HaltProbe))}
+                if isinstance(p, SPANNING)}
 
 
 @dataclass(frozen=True)
